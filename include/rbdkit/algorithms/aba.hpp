@@ -1,0 +1,144 @@
+// rbdkit/algorithms/aba.hpp — forward dynamics qdd = FD(q, qd, tau, f_ext)
+// by the articulated-body algorithm (Featherstone, RBDA §7.3, table 7.1),
+// in body coordinates, O(n).
+//
+// Mimic joints couple coordinates across bodies, which the articulated-body
+// recursion cannot absorb; mimic models take the dense path
+// qdd = M⁻¹(tau - c) with a Cholesky solve (aba_dense).
+#pragma once
+
+#include "crba.hpp"
+#include "dense.hpp"
+#include "rnea.hpp"
+
+namespace rbd {
+
+// pass 1: kinematics, velocity-product accelerations c_i, bias forces pA_i
+//   writes w.X, w.v, w.c, w.IA, w.f (= pA)
+template <typename S>
+RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* fext) {
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    w.X[i] = body_transform(b, q);
+    const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
+    w.v[i] = b.parent >= 0 ? w.X[i].act_inv(w.v[b.parent]) + vJ : vJ;
+    w.c[i] = cross(w.v[i], vJ);
+    w.IA[i] = Mat6<S>::from_inertia(b.I);
+    w.f[i] = cross(w.v[i], b.I * w.v[i]);
+    if (fext) w.f[i] -= load_force(fext + 6 * i);
+  }
+}
+
+// the joint-DoF quantities U = IA S, D⁻¹ = (Sᵀ U)⁻¹ of body i
+template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
+  const int n = b.nv;
+  for (int k = 0; k < n; ++k) U[k] = IA * joint_subspace_col(b, k);
+  if (n == 1) {
+    Dinv[0] = S(1) / dot(joint_subspace_col(b, 0), U[0]);
+    return value_of(Dinv[0]) > 0;
+  }
+  S D[36];
+  for (int k = 0; k < n; ++k) {
+    S col[6];
+    joint_project(b, U[k], col);
+    for (int l = 0; l < n; ++l) D[l * n + k] = col[l];
+  }
+  return spd_inverse(D, n, Dinv);
+}
+
+// IA_λ += X* (IA - U D⁻¹ Uᵀ) X⁻¹ : the articulated inertia handed to the parent
+template <typename S>
+RBD_HD void aba_project_inertia(const BodyDesc<S>& b, const Transform<S>& X, const Mat6<S>& IA, const Force<S>* U,
+                                const S* Dinv, Mat6<S>& IA_parent) {
+  const int n = b.nv;
+  Mat6<S> Ia = IA;
+  for (int k = 0; k < n; ++k) {
+    // W_k = Σ_l U_l Dinv(l, k)
+    S Wk[6] = {S(0), S(0), S(0), S(0), S(0), S(0)};
+    for (int l = 0; l < n; ++l) {
+      const S d = Dinv[l * n + k];
+      Wk[0] += U[l].lin.x * d; Wk[1] += U[l].lin.y * d; Wk[2] += U[l].lin.z * d;
+      Wk[3] += U[l].ang.x * d; Wk[4] += U[l].ang.y * d; Wk[5] += U[l].ang.z * d;
+    }
+    const S Uk[6] = {U[k].lin.x, U[k].lin.y, U[k].lin.z, U[k].ang.x, U[k].ang.y, U[k].ang.z};
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) Ia(r, c) -= Wk[r] * Uk[c];
+  }
+  IA_parent += transform_mat6(X, Ia);
+}
+
+// pass 2 (leaves to root): U, D⁻¹, u = tau - Sᵀ pA; articulated inertias and
+// bias forces handed to the parent. writes w.U, w.Dinv, w.u, w.IA, w.f
+template <typename S> RBD_HD bool aba_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* tau) {
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const BodyDesc<S>& b = m.body[i];
+    Force<S>* U = w.U + 6 * i;
+    S* Dinv = w.Dinv + 36 * i;
+    if (!aba_joint_inertia(b, w.IA[i], U, Dinv)) return false;
+    S sp[6];
+    joint_project(b, w.f[i], sp);
+    for (int k = 0; k < b.nv; ++k) w.u[b.v_idx + k] = tau[b.v_idx + k] - sp[k];
+    if (b.parent < 0) continue;
+    // pa = pA + Ia c + U D⁻¹ u, with Ia = IA - U D⁻¹ Uᵀ:  pa = pA + IA c + U D⁻¹ (u - Uᵀ c)
+    Force<S> pa = w.f[i] + w.IA[i] * w.c[i];
+    for (int k = 0; k < b.nv; ++k) {
+      S coeff = S(0);
+      for (int l = 0; l < b.nv; ++l)
+        coeff += Dinv[k * b.nv + l] * (w.u[b.v_idx + l] - dot(w.c[i], U[l]));
+      pa += coeff * U[k];
+    }
+    aba_project_inertia(b, w.X[i], w.IA[i], U, Dinv, w.IA[b.parent]);
+    w.f[b.parent] += w.X[i].act(pa);
+  }
+  return true;
+}
+
+// pass 3 (root to leaves): a_i = X⁻¹ a_λ + c_i, qdd_i = D⁻¹(u - Uᵀ a_i), a_i += S qdd_i
+//   writes w.a (gravity included), qdd (nv)
+template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Workspace<S>& w, S gravity, S* qdd) {
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    Motion<S> ap = Motion<S>::zero();
+    if (b.parent >= 0) ap = w.a[b.parent];
+    else ap.lin.z = -gravity;
+    w.a[i] = w.X[i].act_inv(ap) + w.c[i];
+    const Force<S>* U = w.U + 6 * i;
+    const S* Dinv = w.Dinv + 36 * i;
+    S r[6];
+    for (int k = 0; k < b.nv; ++k) r[k] = w.u[b.v_idx + k] - dot(w.a[i], U[k]);
+    for (int k = 0; k < b.nv; ++k) {
+      S acc = S(0);
+      for (int l = 0; l < b.nv; ++l) acc += Dinv[k * b.nv + l] * r[l];
+      qdd[b.v_idx + k] = acc;
+    }
+    w.a[i] += joint_motion(b, qdd + b.v_idx);
+  }
+}
+
+// dense path for mimic models: qdd = M⁻¹ (tau - c) by Cholesky. false if M is singular.
+template <typename S>
+RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+                      const S* fext, S gravity, S* qdd) {
+  S* M = w.dense;
+  crba(m, w, q, M);
+  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, qdd);  // qdd <- c
+  for (int k = 0; k < m.nv; ++k) qdd[k] = tau[k] - qdd[k];
+  if (!cholesky(M, m.nv)) return false;
+  cholesky_solve(M, m.nv, qdd);
+  return true;
+}
+
+// qdd (nv) = FD(q, qd, tau, f_ext). fext may be null. Returns false if the
+// articulated inertia of some joint is not positive definite (e.g. a chain
+// of massless bodies), in which case qdd is undefined.
+template <typename S>
+RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
+                S gravity, S* qdd) {
+  if (m.has_mimic) return aba_dense(m, w, q, qd, tau, fext, gravity, qdd);
+  aba_forward_pass1(m, w, q, qd, fext);
+  if (!aba_backward_pass(m, w, tau)) return false;
+  aba_forward_pass2(m, w, gravity, qdd);
+  return true;
+}
+
+}  // namespace rbd

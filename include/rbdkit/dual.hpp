@@ -1,0 +1,44 @@
+// rbdkit/dual.hpp — forward-mode dual numbers a + b·ε (ε² = 0). Running a
+// Scalar-templated routine on Dual<S> gives its exact directional derivative;
+// d2integrate uses it to differentiate the closed-form Jacobians of
+// integrate. Not a finite difference: the result is exact to rounding.
+#pragma once
+
+#include "config.hpp"
+
+namespace rbd {
+
+template <typename S> struct Dual {
+  S v, d;  // value, derivative
+  RBD_HD Dual() : v(0), d(0) {}
+  RBD_HD Dual(S value) : v(value), d(0) {}
+  RBD_HD Dual(S value, S deriv) : v(value), d(deriv) {}
+  RBD_HD explicit Dual(int value) : v(S(value)), d(0) {}
+  RBD_HD Dual& operator+=(const Dual& o) { v += o.v; d += o.d; return *this; }
+  RBD_HD Dual& operator-=(const Dual& o) { v -= o.v; d -= o.d; return *this; }
+  RBD_HD Dual& operator*=(const Dual& o) { d = d * o.v + v * o.d; v *= o.v; return *this; }
+};
+
+template <typename S> RBD_HD Dual<S> operator+(const Dual<S>& a, const Dual<S>& b) { return {a.v + b.v, a.d + b.d}; }
+template <typename S> RBD_HD Dual<S> operator-(const Dual<S>& a, const Dual<S>& b) { return {a.v - b.v, a.d - b.d}; }
+template <typename S> RBD_HD Dual<S> operator-(const Dual<S>& a) { return {-a.v, -a.d}; }
+template <typename S> RBD_HD Dual<S> operator*(const Dual<S>& a, const Dual<S>& b) { return {a.v * b.v, a.d * b.v + a.v * b.d}; }
+template <typename S> RBD_HD Dual<S> operator/(const Dual<S>& a, const Dual<S>& b) {
+  return {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
+}
+
+template <typename S> RBD_HD S value_of(const Dual<S>& a) { return a.v; }
+template <typename S> RBD_HD Dual<S> ssin(const Dual<S>& a) { return {ssin(a.v), a.d * scos(a.v)}; }
+template <typename S> RBD_HD Dual<S> scos(const Dual<S>& a) { return {scos(a.v), -a.d * ssin(a.v)}; }
+template <typename S> RBD_HD Dual<S> ssqrt(const Dual<S>& a) {
+  const S r = ssqrt(a.v);
+  return {r, a.d / (S(2) * r)};
+}
+template <typename S> RBD_HD Dual<S> satan2(const Dual<S>& y, const Dual<S>& x) {
+  return {satan2(y.v, x.v), (x.v * y.d - y.v * x.d) / (x.v * x.v + y.v * y.v)};
+}
+template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return a.v < 0 ? -a : a; }
+
+template <typename S> struct Eps<Dual<S>> { static constexpr S small = Eps<S>::small; };
+
+}  // namespace rbd

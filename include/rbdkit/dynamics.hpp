@@ -1,0 +1,100 @@
+// rbdkit/dynamics.hpp — the host API: checked, batched entry points over raw
+// row-major arrays (what the Python package calls), and the Dynamics class,
+// an Eigen front end for one sample at a time. Host only.
+//
+// Every batched function takes B samples stacked on the leading axis:
+//   q (B x nq), qd / qdd / tau (B x nv), f_ext (B x nb x 6, body frames,
+//   [linear; angular]), and writes outputs of the documented shapes. Inputs
+//   are checked first (finite values, unit quaternions); a bad one throws
+//   std::invalid_argument naming the argument, the sample and the joint.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "algorithms/aba.hpp"
+#include "algorithms/crba.hpp"
+#include "algorithms/minv.hpp"
+#include "algorithms/rnea.hpp"
+#include "configuration.hpp"
+#include "model.hpp"
+#include "workspace.hpp"
+
+namespace rbd {
+
+// a workspace with its own storage (one per thread)
+class WorkspaceBuffer {
+ public:
+  explicit WorkspaceBuffer(const Model& m);
+  Workspace<double>& get() { return ws_; }
+
+ private:
+  std::vector<double> storage_;
+  Workspace<double> ws_;
+};
+
+// ---- input checks (throw std::invalid_argument)
+void check_finite(const double* x, long n, const char* arg);
+// finite values and a unit quaternion (|‖quat‖ - 1| <= 1e-6) for every
+// free-flyer and spherical joint; `sample` only labels the message (-1: none)
+void check_configuration(const Model& m, const double* q, const char* arg, long sample = -1);
+
+namespace batch {
+// tau (B x nv); per-body v, a (without gravity), f (joint force) (B x nb x 6) when not null
+void inverse_dynamics(const Model& m, long B, const double* q, const double* qd, const double* qdd,
+                      const double* fext, double gravity, double* tau, double* v, double* a, double* f);
+// M (B x nv x nv)
+void crba(const Model& m, long B, const double* q, double* M);
+// Minv (B x nv x nv); upper triangle only when dense is false
+void minv(const Model& m, long B, const double* q, bool dense, double* Minv);
+// qdd (B x nv) by the articulated-body algorithm
+void aba(const Model& m, long B, const double* q, const double* qd, const double* tau, const double* fext,
+         double gravity, double* qdd);
+// qdd (B x nv) = M⁻¹ (tau - c)
+void forward_dynamics(const Model& m, long B, const double* q, const double* qd, const double* tau,
+                      const double* fext, double gravity, double* qdd);
+// q_next (B x nq)
+void integrate(const Model& m, long B, const double* q, const double* v, double* out);
+// v (B x nv)
+void difference(const Model& m, long B, const double* q0, const double* q1, double* out);
+// J (B x nv x nv); arg 0 = ∂/∂q, 1 = ∂/∂v
+void dintegrate(const Model& m, long B, const double* q, const double* v, int arg, double* J);
+// J (B x nv x nv); arg 0 = ∂/∂q0 ('from'), 1 = ∂/∂q1 ('to')
+void ddifference(const Model& m, long B, const double* q0, const double* q1, int arg, double* J);
+// H (B x nv x nv x nv): H[i][j][k] = ∂ dintegrate(q, v, arg1)[i][j] / ∂ x_k,
+// x = arg2 (0: q through integrate(q, δ), 1: v)
+void d2integrate(const Model& m, long B, const double* q, const double* v, int arg1, int arg2, double* H);
+}  // namespace batch
+
+// one sample at a time, Eigen in and out; holds its workspace, so one
+// Dynamics per thread
+class Dynamics {
+ public:
+  explicit Dynamics(Model model);
+  const Model& model() const { return model_; }
+
+  Eigen::VectorXd inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                   const Eigen::VectorXd& qdd, double gravity = -9.81,
+                                   const Eigen::MatrixXd& fext = Eigen::MatrixXd());
+  Eigen::MatrixXd crba(const Eigen::VectorXd& q);
+  Eigen::MatrixXd minv(const Eigen::VectorXd& q, bool dense = true);
+  Eigen::VectorXd aba(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& tau,
+                      double gravity = -9.81, const Eigen::MatrixXd& fext = Eigen::MatrixXd());
+  Eigen::VectorXd forward_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, const Eigen::VectorXd& tau,
+                                   double gravity = -9.81, const Eigen::MatrixXd& fext = Eigen::MatrixXd());
+  Eigen::VectorXd nonlinear_effects(const Eigen::VectorXd& q, const Eigen::VectorXd& qd, double gravity = -9.81);
+  Eigen::VectorXd generalized_gravity(const Eigen::VectorXd& q, double gravity = -9.81);
+  Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v);
+  Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1);
+
+  // unchecked fast paths on raw arrays for benchmarks and inner loops
+  Workspace<double>& workspace() { return ws_.get(); }
+  ModelView<double> view() const { return model_.view(); }
+
+ private:
+  Model model_;
+  WorkspaceBuffer ws_;
+};
+
+}  // namespace rbd

@@ -1,0 +1,74 @@
+// rbdkit/workspace.hpp — the per-sample scratch every algorithm writes into.
+//
+// One contiguous buffer carved into typed arrays, so that a CPU thread or a
+// CUDA thread owns one workspace and nothing is allocated inside an algorithm.
+// nb = bodies, nv = velocity coordinates. Shapes and writers:
+#pragma once
+
+#include "joint.hpp"
+
+namespace rbd {
+
+template <typename S> struct Workspace {
+  Transform<S>* X;   // (nb)        X_parent_body at q            — every forward pass
+  Motion<S>* v;      // (nb)        body velocity, body frame     — rnea, aba
+  Motion<S>* a;      // (nb)        body acceleration incl. -g    — rnea, aba
+  Force<S>* f;       // (nb)        rnea: joint force (subtree), aba: bias force pA
+  Motion<S>* c;      // (nb)        aba: velocity-product acceleration v × vJ
+  Mat6<S>* IA;       // (nb)        aba, minv: articulated inertia
+  Inertia<S>* Ic;    // (nb)        crba: composite rigid-body inertia
+  Force<S>* U;       // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF
+  S* Dinv;           // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
+  S* u;              // (nv)        aba: u = tau - Sᵀ·pA
+  S* F;              // (nb x 6 x nv) minv: force sensitivities ∂pA/∂tau
+  S* P;              // (nb x 6 x nv) minv: acceleration sensitivities ∂a/∂tau
+  S* dense;          // (nv x nv + 2 nv) dense path (mimic models) and solves
+};
+
+// bytes needed for one workspace (each array aligned to 16 bytes)
+template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
+  unsigned long n = 0;
+  auto add = [&n](unsigned long bytes) { n += (bytes + 15ul) & ~15ul; };
+  add(sizeof(Transform<S>) * nb);
+  add(sizeof(Motion<S>) * nb);
+  add(sizeof(Motion<S>) * nb);
+  add(sizeof(Force<S>) * nb);
+  add(sizeof(Motion<S>) * nb);
+  add(sizeof(Mat6<S>) * nb);
+  add(sizeof(Inertia<S>) * nb);
+  add(sizeof(Force<S>) * 6 * nb);
+  add(sizeof(S) * 36 * nb);
+  add(sizeof(S) * nv);
+  add(sizeof(S) * 6 * nv * nb);
+  add(sizeof(S) * 6 * nv * nb);
+  add(sizeof(S) * (nv * nv + 2 * nv));
+  return n;
+}
+
+// carve a workspace out of a buffer of workspace_bytes(nb, nv) bytes,
+// 16-byte aligned
+template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, int nv) {
+  unsigned char* p = static_cast<unsigned char*>(buffer);
+  auto take = [&p](unsigned long bytes) {
+    unsigned char* r = p;
+    p += (bytes + 15ul) & ~15ul;
+    return static_cast<void*>(r);
+  };
+  Workspace<S> w;
+  w.X = static_cast<Transform<S>*>(take(sizeof(Transform<S>) * nb));
+  w.v = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * nb));
+  w.a = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * nb));
+  w.f = static_cast<Force<S>*>(take(sizeof(Force<S>) * nb));
+  w.c = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * nb));
+  w.IA = static_cast<Mat6<S>*>(take(sizeof(Mat6<S>) * nb));
+  w.Ic = static_cast<Inertia<S>*>(take(sizeof(Inertia<S>) * nb));
+  w.U = static_cast<Force<S>*>(take(sizeof(Force<S>) * 6 * nb));
+  w.Dinv = static_cast<S*>(take(sizeof(S) * 36 * nb));
+  w.u = static_cast<S*>(take(sizeof(S) * nv));
+  w.F = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
+  w.P = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
+  w.dense = static_cast<S*>(take(sizeof(S) * (nv * nv + 2 * nv)));
+  return w;
+}
+
+}  // namespace rbd
