@@ -1,0 +1,105 @@
+"""rbdkit.Model: a robot read from URDF."""
+
+import os
+import warnings
+
+import numpy as np
+
+from . import _core
+
+
+class Model:
+    """A robot model: bodies, joints, frames and limits, read from URDF.
+
+    Attributes
+      nq, nv        configuration and velocity widths
+      nb            moving bodies (fixed links are merged into them)
+      joint_names   joints owning velocity coordinates, in velocity order
+      frame_names   every link and joint, fixed ones included
+      joints        per body: dict(name, type, body, q_index, v_index, nq, nv,
+                    mimic_of, multiplier, offset)
+      lower, upper  (nq,) position limits; velocity_limit, effort_limit (nv,)
+    """
+
+    def __init__(self, core):
+        if not isinstance(core, _core.Model):
+            raise TypeError("Model: build one with Model.from_urdf(path) or rbdkit.robots.load(name)")
+        self._core = core
+        for w in core.warnings:
+            warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=3)
+
+    @classmethod
+    def from_urdf(cls, path, floating_base=False, strict=False):
+        """Read a URDF file. floating_base adds a free-flyer root joint
+        'root_joint' (q = [x, y, z, qx, qy, qz, qw, ...]); strict makes a
+        non-positive-semidefinite link inertia an error instead of a warning."""
+        if not isinstance(path, (str, os.PathLike)):
+            raise TypeError(f"path: expected a file path (str or os.PathLike), got {type(path).__name__}")
+        path = os.fspath(path)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"path: no URDF file at '{path}'")
+        return cls(_core.Model.from_urdf_file(path, bool(floating_base), bool(strict)))
+
+    @classmethod
+    def from_urdf_string(cls, xml, floating_base=False, strict=False):
+        """Read a URDF document given as a string."""
+        if not isinstance(xml, str):
+            raise TypeError(f"xml: expected the URDF text as str, got {type(xml).__name__}")
+        return cls(_core.Model.from_urdf_string(xml, bool(floating_base), bool(strict)))
+
+    # ---- sizes and names
+    name = property(lambda self: self._core.name)
+    nq = property(lambda self: self._core.nq)
+    nv = property(lambda self: self._core.nv)
+    nb = property(lambda self: self._core.nb)
+    floating_base = property(lambda self: self._core.floating_base)
+    has_mimic = property(lambda self: self._core.has_mimic)
+    joint_names = property(lambda self: list(self._core.joint_names))
+    frame_names = property(lambda self: list(self._core.frame_names))
+    body_names = property(lambda self: list(self._core.body_names))
+    body_parents = property(lambda self: list(self._core.body_parents))
+    joints = property(lambda self: list(self._core.joints))
+    lower = property(lambda self: np.array(self._core.lower))
+    upper = property(lambda self: np.array(self._core.upper))
+    velocity_limit = property(lambda self: np.array(self._core.velocity_limit))
+    effort_limit = property(lambda self: np.array(self._core.effort_limit))
+
+    def frame(self, name):
+        """(body index or -1 for the world, kind, R (3, 3), p (3,)): the
+        placement of a named frame in its body's frame"""
+        if not isinstance(name, str):
+            raise TypeError(f"name: expected a frame name (str), got {type(name).__name__}")
+        body, kind, R, p = self._core.frame_placement(self._core.frame_index(name))
+        return body, kind, np.array(R).reshape(3, 3), np.array(p)
+
+    def joint(self, name):
+        """the joints entry of a named joint"""
+        if not isinstance(name, str):
+            raise TypeError(f"name: expected a joint name (str), got {type(name).__name__}")
+        return self._core.joints[self._core.joint_index(name)]
+
+    def neutral(self):
+        """the neutral configuration (nq,): zero joints, identity quaternions"""
+        return np.array(self._core.neutral())
+
+    def random_configuration(self, rng=None, scale=1.0):
+        """a random configuration: neutral ⊕ uniform(-scale, scale) tangent
+        step (joint limits are not applied)"""
+        rng = np.random.default_rng(rng)
+        q = np.empty(self.nq)
+        _core.integrate(self._core, self.neutral()[None], rng.uniform(-scale, scale, (1, self.nv)), q[None])
+        return q
+
+    def summary(self):
+        """a short text description"""
+        types = {}
+        for j in self.joints:
+            t = j["type"] + (" (mimic)" if j["mimic_of"] else "")
+            types[t] = types.get(t, 0) + 1
+        jt = ", ".join(f"{n} {t}" for t, n in sorted(types.items()))
+        base = "floating base" if self.floating_base else "fixed base"
+        return (f"robot {self.name!r}: {self.nb} bodies, nq={self.nq}, nv={self.nv}, {base}\n"
+                f"  joints: {jt}\n  frames: {len(self.frame_names)}")
+
+    def __repr__(self):
+        return f"<rbdkit.Model {self.name!r} nq={self.nq} nv={self.nv} nb={self.nb}>"

@@ -1,0 +1,182 @@
+// rbdkit._core — the nanobind extension under the rbdkit Python package.
+//
+// Thin: the Python layer (python/rbdkit/) checks shapes and dtypes and
+// allocates outputs; these functions take C-contiguous float64 arrays with
+// the batch on axis 0, check values (finite, unit quaternions) in C++ and
+// run the batched loops with the GIL released.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "rbdkit/dynamics.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using rbd::Model;
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+
+namespace {
+
+// pointer of an optional input (None -> null)
+const double* opt(const std::optional<In>& a) { return a ? a->data() : nullptr; }
+
+long batch_of(const In& a) { return a.ndim() == 0 ? 1 : static_cast<long>(a.shape(0)); }
+
+// seconds per call of `fn`, the best of `repeats` runs of `iters` calls
+template <typename Fn> double seconds_per_call(Fn&& fn, int iters, int repeats = 5) {
+  double best = 1e30;
+  for (int r = 0; r < repeats; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < iters; ++i) fn();
+    const auto t1 = std::chrono::steady_clock::now();
+    best = std::min(best, std::chrono::duration<double>(t1 - t0).count() / iters);
+  }
+  return best;
+}
+
+nb::dict joint_dict(const rbd::JointInfo& j) {
+  nb::dict d;
+  d["name"] = j.name;
+  d["type"] = j.type;
+  d["body"] = j.body;
+  d["q_index"] = j.q_idx;
+  d["v_index"] = j.v_idx;
+  d["nq"] = j.nq;
+  d["nv"] = j.nv;
+  d["mimic_of"] = j.mimic_of.empty() ? nb::none() : nb::cast(j.mimic_of);
+  d["multiplier"] = j.multiplier;
+  d["offset"] = j.offset;
+  return d;
+}
+
+}  // namespace
+
+NB_MODULE(_core, m) {
+  m.doc() = "rbdkit compiled core";
+
+  nb::class_<Model>(m, "Model")
+      .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false)
+      .def_static("from_urdf_string", &Model::from_urdf_string, "xml"_a, "floating_base"_a = false,
+                  "strict"_a = false)
+      .def_ro("name", &Model::name)
+      .def_ro("nq", &Model::nq)
+      .def_ro("nv", &Model::nv)
+      .def_ro("floating_base", &Model::floating_base)
+      .def_prop_ro("nb", &Model::nb)
+      .def_prop_ro("has_mimic", &Model::has_mimic)
+      .def_prop_ro("joint_names", &Model::joint_names)
+      .def_prop_ro("frame_names", &Model::frame_names)
+      .def_ro("body_names", &Model::body_names)
+      .def_ro("warnings", &Model::warnings)
+      .def_ro("lower", &Model::lower)
+      .def_ro("upper", &Model::upper)
+      .def_ro("velocity_limit", &Model::velocity_limit)
+      .def_ro("effort_limit", &Model::effort_limit)
+      .def_prop_ro("body_parents",
+                   [](const Model& md) {
+                     std::vector<int> p;
+                     for (const auto& b : md.bodies) p.push_back(b.parent);
+                     return p;
+                   })
+      .def_prop_ro("joints",
+                   [](const Model& md) {
+                     nb::list out;
+                     for (const auto& j : md.joints) out.append(joint_dict(j));
+                     return out;
+                   })
+      .def("frame_index", &Model::frame_index, "name"_a)
+      .def("joint_index", &Model::joint_index, "name"_a)
+      .def("frame_placement",
+           [](const Model& md, int i) {
+             // (body, R row-major 9, p 3) of frame i in its body
+             const rbd::FrameInfo& f = md.frames.at(i);
+             std::vector<double> R(f.X_body_frame.R.m, f.X_body_frame.R.m + 9);
+             std::vector<double> p = {f.X_body_frame.p.x, f.X_body_frame.p.y, f.X_body_frame.p.z};
+             return nb::make_tuple(f.body, f.kind, R, p);
+           })
+      .def("neutral", &Model::neutral);
+
+  // ---- batched dynamics: inputs (B, n) C-contiguous float64, outputs preallocated
+  m.def("inverse_dynamics",
+        [](const Model& md, In q, In qd, std::optional<In> qdd, std::optional<In> fext, double g, Out tau,
+           std::optional<Out> v, std::optional<Out> a, std::optional<Out> f) {
+          nb::gil_scoped_release r;
+          rbd::batch::inverse_dynamics(md, batch_of(q), q.data(), qd.data(), opt(qdd), opt(fext), g, tau.data(),
+                                       v ? v->data() : nullptr, a ? a->data() : nullptr, f ? f->data() : nullptr);
+        },
+        "model"_a, "q"_a, "qd"_a, "qdd"_a.none(), "fext"_a.none(), "gravity"_a, "tau"_a, "v"_a.none(),
+        "a"_a.none(), "f"_a.none());
+  m.def("crba", [](const Model& md, In q, Out M) {
+    nb::gil_scoped_release r;
+    rbd::batch::crba(md, batch_of(q), q.data(), M.data());
+  });
+  m.def("minv", [](const Model& md, In q, bool dense, Out Mi) {
+    nb::gil_scoped_release r;
+    rbd::batch::minv(md, batch_of(q), q.data(), dense, Mi.data());
+  });
+  m.def("aba",
+        [](const Model& md, In q, In qd, In tau, std::optional<In> fext, double g, Out qdd) {
+          nb::gil_scoped_release r;
+          rbd::batch::aba(md, batch_of(q), q.data(), qd.data(), tau.data(), opt(fext), g, qdd.data());
+        },
+        "model"_a, "q"_a, "qd"_a, "tau"_a, "fext"_a.none(), "gravity"_a, "qdd"_a);
+  m.def("forward_dynamics",
+        [](const Model& md, In q, In qd, In tau, std::optional<In> fext, double g, Out qdd) {
+          nb::gil_scoped_release r;
+          rbd::batch::forward_dynamics(md, batch_of(q), q.data(), qd.data(), tau.data(), opt(fext), g, qdd.data());
+        },
+        "model"_a, "q"_a, "qd"_a, "tau"_a, "fext"_a.none(), "gravity"_a, "qdd"_a);
+
+  // ---- configuration space
+  m.def("integrate", [](const Model& md, In q, In v, Out out) {
+    nb::gil_scoped_release r;
+    rbd::batch::integrate(md, batch_of(q), q.data(), v.data(), out.data());
+  });
+  m.def("difference", [](const Model& md, In q0, In q1, Out out) {
+    nb::gil_scoped_release r;
+    rbd::batch::difference(md, batch_of(q0), q0.data(), q1.data(), out.data());
+  });
+  m.def("dintegrate", [](const Model& md, In q, In v, int arg, Out J) {
+    nb::gil_scoped_release r;
+    rbd::batch::dintegrate(md, batch_of(q), q.data(), v.data(), arg, J.data());
+  });
+  m.def("ddifference", [](const Model& md, In q0, In q1, int arg, Out J) {
+    nb::gil_scoped_release r;
+    rbd::batch::ddifference(md, batch_of(q0), q0.data(), q1.data(), arg, J.data());
+  });
+  m.def("d2integrate", [](const Model& md, In q, In v, int arg1, int arg2, Out H) {
+    nb::gil_scoped_release r;
+    rbd::batch::d2integrate(md, batch_of(q), q.data(), v.data(), arg1, arg2, H.data());
+  });
+
+  // ---- per-call timing of the core algorithms, no checks, no Python in the loop
+  m.def("time_per_call",
+        [](const Model& md, const std::string& op, In q, In qd, In tau, int iters) {
+          nb::gil_scoped_release r;
+          rbd::WorkspaceBuffer buf(md);
+          rbd::Workspace<double>& w = buf.get();
+          const rbd::ModelView<double> mv = md.view();
+          std::vector<double> out(md.nv * md.nv);
+          const double* fx = nullptr;
+          if (op == "inverse_dynamics")
+            return seconds_per_call([&] { rbd::rnea(mv, w, q.data(), qd.data(), tau.data(), fx, -9.81, out.data()); }, iters);
+          if (op == "crba") return seconds_per_call([&] { rbd::crba(mv, w, q.data(), out.data()); }, iters);
+          if (op == "minv") return seconds_per_call([&] { rbd::minv(mv, w, q.data(), true, out.data()); }, iters);
+          if (op == "aba")
+            return seconds_per_call([&] { rbd::aba(mv, w, q.data(), qd.data(), tau.data(), fx, -9.81, out.data()); }, iters);
+          if (op == "forward_dynamics")
+            return seconds_per_call(
+                [&] { rbd::forward_dynamics(mv, w, q.data(), qd.data(), tau.data(), fx, -9.81, out.data()); }, iters);
+          throw std::invalid_argument("op: unknown operation '" + op +
+                                      "' (expected inverse_dynamics, crba, minv, aba or forward_dynamics)");
+        },
+        "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
+}

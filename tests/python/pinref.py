@@ -1,0 +1,213 @@
+"""Pinocchio references for rbdkit models.
+
+pin_reference(path, floating_base) builds a Pinocchio model of the same URDF
+and the map between the two coordinate systems:
+
+  * Pinocchio reads standard URDF; the joint types it does not read from URDF
+    are rebuilt by hand: spherical -> JointModelSpherical, helical/screw ->
+    JointModelHelicalUnaligned(axis, pitch), planar (normal z) -> a
+    prismatic-x, prismatic-y, revolute-z chain with massless links (the
+    decomposition the URDF's planar joint means);
+  * Pinocchio orders sibling joints by name, rbdkit by document order, so
+    coordinates are matched by joint name;
+  * Pinocchio's continuous joints use (cos, sin) coordinates;
+  * mimic joints are independent joints in the Pinocchio model, and
+    v_pin = G v, q_pin = map(q): reduced quantities are Gᵀ(·)G.
+"""
+
+import os
+import re
+import tempfile
+
+import numpy as np
+import pinocchio as pin
+
+import rbdkit
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+URDF_DIR = os.path.join(HERE, "..", "urdf")
+ROBOTS_DIR = os.path.join(HERE, "..", "..", "robots")
+
+
+def _expand_planar(xml):
+    """planar joints (normal z) -> prismatic x, prismatic y, revolute z with
+    massless intermediate links named like rbdkit's sub-joints"""
+    out = xml
+    for m in re.finditer(r'<joint name="([^"]+)" type="planar">(.*?)</joint>', xml, re.S):
+        name, body = m.group(1), m.group(2)
+        assert re.search(r'<axis xyz="0 0 1"/>', body), "the test harness expands planar joints with normal z only"
+        parent = re.search(r'<parent link="([^"]+)"/>', body).group(1)
+        child = re.search(r'<child link="([^"]+)"/>', body).group(1)
+        origin = re.search(r"<origin[^>]*/>", body).group(0)
+        lx, ly = f"{name}__x_link", f"{name}__y_link"
+        rep = (f'<link name="{lx}"/><link name="{ly}"/>'
+               f'<joint name="{name}_x" type="prismatic"><parent link="{parent}"/><child link="{lx}"/>{origin}'
+               f'<axis xyz="1 0 0"/><limit lower="-10" upper="10" effort="1" velocity="1"/></joint>'
+               f'<joint name="{name}_y" type="prismatic"><parent link="{lx}"/><child link="{ly}"/>'
+               f'<axis xyz="0 1 0"/><limit lower="-10" upper="10" effort="1" velocity="1"/></joint>'
+               f'<joint name="{name}_rot" type="continuous"><parent link="{ly}"/><child link="{child}"/>'
+               f'<axis xyz="0 0 1"/></joint>')
+        out = out.replace(m.group(0), rep)
+    return out
+
+
+def _placeholders(xml):
+    """spherical / helical joints -> continuous placeholders; returns the
+    new text and {name: JointModel} to put back"""
+    replace = {}
+    for m in re.finditer(r'<joint name="([^"]+)" type="(spherical|helical|screw)">(.*?)</joint>', xml, re.S):
+        name, typ, body = m.groups()
+        if typ == "spherical":
+            replace[name] = pin.JointModelSpherical()
+        else:
+            ax = re.search(r'<axis xyz="([^"]+)"(?: pitch="([^"]+)")?/>', body)
+            axis = np.array([float(x) for x in ax.group(1).split()])
+            pitch = float(ax.group(2) or 0.0)
+            replace[name] = pin.JointModelHelicalUnaligned(axis / np.linalg.norm(axis), pitch)
+    xml = re.sub(r'type="(spherical|helical|screw)"', 'type="continuous"', xml)
+    return xml, replace
+
+
+def _rebuild(pm, replace):
+    """a copy of pm with the joints named in `replace` swapped"""
+    m = pin.Model()
+    m.name = pm.name
+    for jid in range(1, pm.njoints):
+        name = pm.names[jid]
+        jm = replace.get(name, pm.joints[jid])
+        new = m.addJoint(pm.parents[jid], jm, pm.jointPlacements[jid], name)
+        m.appendBodyToJoint(new, pm.inertias[jid], pin.SE3.Identity())
+    return m
+
+
+class Reference:
+    """A Pinocchio model mirroring an rbdkit model."""
+
+    def __init__(self, path, floating_base=False):
+        self.model = rbdkit.Model.from_urdf(path, floating_base=floating_base)
+        with open(path) as f:
+            xml = f.read()
+        xml = _expand_planar(xml)
+        xml, replace = _placeholders(xml)
+        with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
+            f.write(xml)
+            tmp = f.name
+        try:
+            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer()) if floating_base
+                  else pin.buildModelFromUrdf(tmp))
+        finally:
+            os.unlink(tmp)
+        self.pin = _rebuild(pm, replace) if replace else pm
+        self.data = self.pin.createData()
+        self._build_map()
+
+    def _build_map(self):
+        m, pm = self.model, self.pin
+        self.G = np.zeros((pm.nv, m.nv))
+        self.body_of_joint = {}  # pin joint id -> rbdkit body index
+        self.entries = []
+        for jid in range(1, pm.njoints):
+            name = pm.names[jid]
+            j = m.joint(name)
+            self.body_of_joint[jid] = j["body"]
+            pj = pm.joints[jid]
+            self.entries.append((j, pj.idx_q, pj.idx_v, pj.nq, pj.nv))
+            if j["mimic_of"]:
+                self.G[pj.idx_v, j["v_index"]] = j["multiplier"]
+            else:
+                self.G[pj.idx_v:pj.idx_v + pj.nv, j["v_index"]:j["v_index"] + j["nv"]] = np.eye(pj.nv)
+        self.bodies = [self.body_of_joint[jid] for jid in range(1, pm.njoints)]
+
+    def q(self, q):
+        """rbdkit configuration -> Pinocchio configuration"""
+        out = np.zeros(self.pin.nq)
+        for j, iq, iv, nq, nv in self.entries:
+            if j["mimic_of"]:
+                x = np.array([j["multiplier"] * q[j["q_index"]] + j["offset"]])
+            else:
+                x = q[j["q_index"]:j["q_index"] + j["nq"]]
+            if nq == 2 and len(x) == 1:  # Pinocchio's unbounded revolute: (cos, sin)
+                x = np.array([np.cos(x[0]), np.sin(x[0])])
+            out[iq:iq + nq] = x
+        return out
+
+    def v(self, v):
+        return self.G @ v
+
+    def fext(self, f):
+        """rbdkit (nb, 6) body-frame forces -> Pinocchio per-joint forces"""
+        out = pin.StdVec_Force()
+        out.append(pin.Force.Zero())
+        for jid in range(1, self.pin.njoints):
+            out.append(pin.Force(f[self.body_of_joint[jid]]))
+        return out
+
+    def set_gravity(self, g):
+        self.pin.gravity.linear = np.array([0.0, 0.0, g])
+
+    # ---- reduced-coordinate references
+    def rnea(self, q, v, a, g=-9.81, fext=None):
+        self.set_gravity(g)
+        args = (self.pin, self.data, self.q(q), self.v(v), self.v(a))
+        tau = pin.rnea(*args, self.fext(fext)) if fext is not None else pin.rnea(*args)
+        # Pinocchio's RNEA keeps accelerations with the fictitious base
+        # acceleration -g (a_gf); rbdkit reports them without it
+        kin = self.pin.createData()
+        pin.forwardKinematics(self.pin, kin, self.q(q))
+        per_body = {}
+        for jid in range(1, self.pin.njoints):
+            b = self.body_of_joint[jid]
+            a = self.data.a_gf[jid].vector.copy()
+            a[:3] -= kin.oMi[jid].rotation.T @ (-self.pin.gravity.linear)
+            per_body[b] = (self.data.v[jid].vector.copy(), a, self.data.f[jid].vector.copy())
+        return self.G.T @ tau, per_body
+
+    def crba(self, q):
+        M = pin.crba(self.pin, self.data, self.q(q))
+        M = np.triu(M) + np.triu(M, 1).T
+        return self.G.T @ M @ self.G
+
+    def nle(self, q, v, g=-9.81, fext=None):
+        return self.rnea(q, v, np.zeros(self.model.nv), g, fext)[0]
+
+    def forward(self, q, v, tau, g=-9.81, fext=None):
+        """qdd of the reduced system: (Gᵀ M G)⁻¹ (tau - Gᵀ c); Pinocchio's ABA when G is a permutation"""
+        if not self.model.has_mimic:
+            self.set_gravity(g)
+            args = (self.pin, self.data, self.q(q), self.v(v), self.G @ tau)
+            qdd = pin.aba(*args, self.fext(fext)) if fext is not None else pin.aba(*args)
+            return self.G.T @ qdd
+        return np.linalg.solve(self.crba(q), tau - self.nle(q, v, g, fext))
+
+    def minv(self, q):
+        if not self.model.has_mimic:
+            Mi = pin.computeMinverse(self.pin, self.data, self.q(q))
+            Mi = np.triu(Mi) + np.triu(Mi, 1).T
+            return self.G.T @ Mi @ self.G
+        return np.linalg.inv(self.crba(q))
+
+
+def close(actual, reference, rtol=1e-9):
+    """max |actual - reference| <= rtol · max(1, max |reference|)"""
+    actual, reference = np.asarray(actual), np.asarray(reference)
+    assert actual.shape == reference.shape, (actual.shape, reference.shape)
+    scale = max(1.0, float(np.max(np.abs(reference))) if reference.size else 1.0)
+    err = float(np.max(np.abs(actual - reference))) if reference.size else 0.0
+    return err <= rtol * scale, err, scale
+
+
+def assert_close(actual, reference, what, rtol=1e-9):
+    ok, err, scale = close(actual, reference, rtol)
+    assert ok, f"{what}: max error {err:.3e} > {rtol:g} x {scale:.3g}"
+
+
+# the models every equivalence test runs on: (id, path, floating_base)
+def all_models():
+    cases = []
+    for name in ("iiwa", "hyq", "atlas"):
+        for fb in (False, True):
+            cases.append((f"{name}-{'floating' if fb else 'fixed'}", os.path.join(ROBOTS_DIR, name + ".urdf"), fb))
+    for name in ("spherical", "helical", "planar", "mixed", "mimic"):
+        for fb in (False, True):
+            cases.append((f"{name}-{'floating' if fb else 'fixed'}", os.path.join(URDF_DIR, name + ".urdf"), fb))
+    return cases
