@@ -17,6 +17,8 @@ struct Case {
   bool floating;
 };
 
+void PrintTo(const Case& c, std::ostream* os) { *os << c.robot << (c.floating ? " floating" : " fixed"); }
+
 class Identities : public ::testing::TestWithParam<Case> {};
 
 Eigen::VectorXd random_q(const Model& m, std::mt19937& rng) {
