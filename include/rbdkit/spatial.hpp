@@ -245,24 +245,34 @@ template <typename S> RBD_HD Mat6<S> motion_matrix(const Transform<S>& X) {
   return A;
 }
 
-// articulated inertia of frame b expressed in frame a: X^-T Ib X^-1 with the
-// motion matrix X of X_a_b; written as A^T Ib A where A maps a-motions to b.
+// articulated inertia of frame b expressed in frame a: X* Ib X⁻¹ for
+// X = X_a_b. With Ib = [[A, B], [Bᵀ, C]] (linear/angular blocks), rotate each
+// block (A' = R A Rᵀ, ...), then shift by p with P = [p]x:
+//   A_a = A',  B_a = B' - A' P,  C_a = C' - P A' P + P B' + (P B')ᵀ
 template <typename S> RBD_HD Mat6<S> transform_mat6(const Transform<S>& X_a_b, const Mat6<S>& Ib) {
-  const Mat6<S> A = motion_matrix(X_a_b.inverse());
-  Mat6<S> T, out;
-  // T = Ib A
-  for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) {
-      S acc = S(0);
-      for (int k = 0; k < 6; ++k) acc += Ib(r, k) * A(k, c);
-      T(r, c) = acc;
+  Mat3<S> A, B, C;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      A(r, c) = Ib(r, c);
+      B(r, c) = Ib(r, c + 3);
+      C(r, c) = Ib(r + 3, c + 3);
     }
-  // out = A^T T
-  for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) {
-      S acc = S(0);
-      for (int k = 0; k < 6; ++k) acc += A(k, r) * T(k, c);
-      out(r, c) = acc;
+  const Mat3<S>& R = X_a_b.R;
+  const Mat3<S> Rt = transpose(R);
+  A = R * A * Rt;
+  B = R * B * Rt;
+  C = R * C * Rt;
+  const Mat3<S> P = skew(X_a_b.p);
+  const Mat3<S> AP = A * P, PB = P * B;
+  const Mat3<S> Ba = B - AP;
+  const Mat3<S> Ca = C - P * AP + PB + transpose(PB);  // -B'ᵀP = (P B')ᵀ
+  Mat6<S> out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      out(r, c) = A(r, c);
+      out(r, c + 3) = Ba(r, c);
+      out(r + 3, c) = Ba(c, r);
+      out(r + 3, c + 3) = Ca(r, c);
     }
   return out;
 }

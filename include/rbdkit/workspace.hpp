@@ -11,17 +11,19 @@ namespace rbd {
 
 template <typename S> struct Workspace {
   Transform<S>* X;   // (nb)        X_parent_body at q            — every forward pass
+  Transform<S>* Xw;  // (nb)        X_world_body at q             — minv
   Motion<S>* v;      // (nb)        body velocity, body frame     — rnea, aba
   Motion<S>* a;      // (nb)        body acceleration incl. -g    — rnea, aba
   Force<S>* f;       // (nb)        rnea: joint force (subtree), aba: bias force pA
   Motion<S>* c;      // (nb)        aba: velocity-product acceleration v × vJ
   Mat6<S>* IA;       // (nb)        aba, minv: articulated inertia
   Inertia<S>* Ic;    // (nb)        crba: composite rigid-body inertia
-  Force<S>* U;       // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF
+  Force<S>* U;       // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
+  Motion<S>* Sw;     // (nb x 6)    minv: motion subspace columns in the world frame
   S* Dinv;           // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
   S* u;              // (nv)        aba: u = tau - Sᵀ·pA
-  S* F;              // (nb x 6 x nv) minv: force sensitivities ∂pA/∂tau
-  S* P;              // (nb x 6 x nv) minv: acceleration sensitivities ∂a/∂tau
+  S* F;              // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
+  S* P;              // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame
   S* dense;          // (nv x nv + 2 nv) dense path (mimic models) and solves
 };
 
@@ -30,6 +32,7 @@ template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
   unsigned long n = 0;
   auto add = [&n](unsigned long bytes) { n += (bytes + 15ul) & ~15ul; };
   add(sizeof(Transform<S>) * nb);
+  add(sizeof(Transform<S>) * nb);
   add(sizeof(Motion<S>) * nb);
   add(sizeof(Motion<S>) * nb);
   add(sizeof(Force<S>) * nb);
@@ -37,9 +40,10 @@ template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
   add(sizeof(Mat6<S>) * nb);
   add(sizeof(Inertia<S>) * nb);
   add(sizeof(Force<S>) * 6 * nb);
+  add(sizeof(Motion<S>) * 6 * nb);
   add(sizeof(S) * 36 * nb);
   add(sizeof(S) * nv);
-  add(sizeof(S) * 6 * nv * nb);
+  add(sizeof(S) * 6 * nv);
   add(sizeof(S) * 6 * nv * nb);
   add(sizeof(S) * (nv * nv + 2 * nv));
   return n;
@@ -56,6 +60,7 @@ template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, 
   };
   Workspace<S> w;
   w.X = static_cast<Transform<S>*>(take(sizeof(Transform<S>) * nb));
+  w.Xw = static_cast<Transform<S>*>(take(sizeof(Transform<S>) * nb));
   w.v = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * nb));
   w.a = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * nb));
   w.f = static_cast<Force<S>*>(take(sizeof(Force<S>) * nb));
@@ -63,9 +68,10 @@ template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, 
   w.IA = static_cast<Mat6<S>*>(take(sizeof(Mat6<S>) * nb));
   w.Ic = static_cast<Inertia<S>*>(take(sizeof(Inertia<S>) * nb));
   w.U = static_cast<Force<S>*>(take(sizeof(Force<S>) * 6 * nb));
+  w.Sw = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 6 * nb));
   w.Dinv = static_cast<S*>(take(sizeof(S) * 36 * nb));
   w.u = static_cast<S*>(take(sizeof(S) * nv));
-  w.F = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
+  w.F = static_cast<S*>(take(sizeof(S) * 6 * nv));
   w.P = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
   w.dense = static_cast<S*>(take(sizeof(S) * (nv * nv + 2 * nv)));
   return w;

@@ -169,12 +169,20 @@ class RBD:
 
     # ---- timing (for reports; benchmarks live in bench/)
     def time_per_call(self, op, q, qd, tau, iters=2000):
-        """seconds per call of a core algorithm in C++ (best of 5 runs)"""
+        """seconds per call of a core algorithm in C++ (best of 5 runs of
+        `iters` calls); op: inverse_dynamics, crba, minv, aba, forward_dynamics"""
+        ops = ("inverse_dynamics", "crba", "minv", "aba", "forward_dynamics")
+        check_choice(op, "op", ops)
+        if isinstance(iters, (bool, np.bool_)) or not isinstance(iters, (int, np.integer)) or iters < 1:
+            raise ValueError(f"iters: expected a positive integer, got {iters!r}")
         b = Batch()
         iq, iv, it = self._q(b, q), self._v(b, qd, "qd"), self._v(b, tau, "tau")
         if b.batched:
             raise ValueError("time_per_call: expected one sample, not a batch")
-        self.inverse_dynamics(q, qd, tau)  # checks the values and warms up
+        self.integrate(q, np.zeros(self.nv))  # checks q (finite, unit quaternions)
+        for name, i in (("qd", iv), ("tau", it)):
+            if not np.all(np.isfinite(b.get(i))):
+                raise ValueError(f"{name}: expected finite values")
         return _core.time_per_call(self._m, op, b.get(iq)[0], b.get(iv)[0], b.get(it)[0], int(iters))
 
     def __repr__(self):

@@ -128,3 +128,17 @@ def test_batch_equals_single(ref):
         np.testing.assert_array_equal(tau_b[k], rbd.inverse_dynamics(Q[k], V[k], A[k])[0])
         np.testing.assert_array_equal(M_b[k], rbd.crba(Q[k]))
         np.testing.assert_array_equal(qdd_b[k], rbd.aba(Q[k], V[k], T[k]))
+
+
+def test_apply_external_forces_gives_the_net_force_on_leaf_bodies(ref):
+    # a leaf body's transmitted force is its net body force; with f_ext it is
+    # exactly the force without f_ext, minus f_ext (body frame)
+    rbd = rbdkit.RBD(ref.model)
+    parents = ref.model.body_parents
+    leaves = [b for b in range(ref.model.nb) if b not in parents]
+    for q, qd, qdd, _, fext in states(ref.model, 2, seed=3):
+        f_free = rbd.inverse_dynamics(q, qd, qdd)[3]
+        f_with = rbd.inverse_dynamics(q, qd, qdd, f_ext=fext)[3]
+        applied = rbd.apply_external_forces(f_free, fext)
+        assert_close(applied[leaves], f_with[leaves], "leaf forces with f_ext")
+        np.testing.assert_array_equal(applied, f_free - fext)

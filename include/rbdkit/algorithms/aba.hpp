@@ -29,28 +29,28 @@ RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q
   }
 }
 
-// the joint-DoF quantities U = IA S, D⁻¹ = (Sᵀ U)⁻¹ of body i
-template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
-  const int n = b.nv;
-  for (int k = 0; k < n; ++k) U[k] = IA * joint_subspace_col(b, k);
+// the joint-DoF quantities U = IA S, D⁻¹ = (Sᵀ U)⁻¹ for subspace columns Sc[0..n)
+template <typename S> RBD_HD bool joint_inertia(int n, const Motion<S>* Sc, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
+  for (int k = 0; k < n; ++k) U[k] = IA * Sc[k];
   if (n == 1) {
-    Dinv[0] = S(1) / dot(joint_subspace_col(b, 0), U[0]);
+    Dinv[0] = S(1) / dot(Sc[0], U[0]);
     return value_of(Dinv[0]) > 0;
   }
   S D[36];
-  for (int k = 0; k < n; ++k) {
-    S col[6];
-    joint_project(b, U[k], col);
-    for (int l = 0; l < n; ++l) D[l * n + k] = col[l];
-  }
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < n; ++l) D[l * n + k] = dot(Sc[l], U[k]);
   return spd_inverse(D, n, Dinv);
 }
 
-// IA_λ += X* (IA - U D⁻¹ Uᵀ) X⁻¹ : the articulated inertia handed to the parent
-template <typename S>
-RBD_HD void aba_project_inertia(const BodyDesc<S>& b, const Transform<S>& X, const Mat6<S>& IA, const Force<S>* U,
-                                const S* Dinv, Mat6<S>& IA_parent) {
-  const int n = b.nv;
+// the same in body coordinates for body b
+template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
+  Motion<S> Sc[6];
+  for (int k = 0; k < b.nv; ++k) Sc[k] = joint_subspace_col(b, k);
+  return joint_inertia(b.nv, Sc, IA, U, Dinv);
+}
+
+// Ia = IA - U D⁻¹ Uᵀ: the articulated inertia seen through the joint
+template <typename S> RBD_HD Mat6<S> articulated_residual(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv) {
   Mat6<S> Ia = IA;
   for (int k = 0; k < n; ++k) {
     // W_k = Σ_l U_l Dinv(l, k)
@@ -64,7 +64,14 @@ RBD_HD void aba_project_inertia(const BodyDesc<S>& b, const Transform<S>& X, con
     for (int r = 0; r < 6; ++r)
       for (int c = 0; c < 6; ++c) Ia(r, c) -= Wk[r] * Uk[c];
   }
-  IA_parent += transform_mat6(X, Ia);
+  return Ia;
+}
+
+// IA_λ += X* (IA - U D⁻¹ Uᵀ) X⁻¹ : the articulated inertia handed to the parent
+template <typename S>
+RBD_HD void aba_project_inertia(const BodyDesc<S>& b, const Transform<S>& X, const Mat6<S>& IA, const Force<S>* U,
+                                const S* Dinv, Mat6<S>& IA_parent) {
+  IA_parent += transform_mat6(X, articulated_residual(b.nv, IA, U, Dinv));
 }
 
 // pass 2 (leaves to root): U, D⁻¹, u = tau - Sᵀ pA; articulated inertias and

@@ -3,10 +3,17 @@
 // torque columns (Carpentier, "Analytical inverse of the joint space inertia
 // matrix", 2018), never by factorising M.
 //
-//   backward:  F_i = ∂pA_i/∂tau            (6 x nv per body, subtree columns)
-//              Minv_i· = D⁻¹ (e_i - Sᵀ F_i)   (rows of joint i, subtree columns)
-//   forward:   P_i = ∂a_i/∂tau              (6 x nv per body, columns ≥ v_idx)
-//              Minv_i· -= D⁻¹ Uᵀ X⁻¹ P_λ
+//   backward:  F_i = ∂pA_i/∂tau              (subtree columns)
+//              Minv_i· = D⁻¹ (e_i - Sᵀ F_i)     (rows of joint i, subtree columns)
+//              F_λ += F_i + U_i Minv_i·
+//   forward:   P_i = ∂a_i/∂tau                (columns ≥ v_idx)
+//              Minv_i· -= D⁻¹ Uᵀ P_λ,  P_i = P_λ + S_i Minv_i·
+//
+// Everything is in world coordinates: the articulated inertias pass to the
+// parent without a congruence transform, and the O(n²) column work is dot
+// products and axpys (no column is ever transformed). Since a column of
+// subtree(i) only ever receives contributions from inside that subtree, one
+// shared 6 x nv array holds every F_i.
 //
 // Only the upper triangle (columns ≥ the row's joint) is computed; the lower
 // triangle is mirrored when a dense result is asked for. Mimic models take
@@ -17,77 +24,71 @@
 
 namespace rbd {
 
-// columns of a 6 x nv sensitivity block, stored row-major (6 rows of nv)
-template <typename S> RBD_HD Force<S> load_col_force(const S* B, int nv, int c) {
-  return {{B[c], B[nv + c], B[2 * nv + c]}, {B[3 * nv + c], B[4 * nv + c], B[5 * nv + c]}};
-}
-template <typename S> RBD_HD Motion<S> load_col_motion(const S* B, int nv, int c) {
-  return {{B[c], B[nv + c], B[2 * nv + c]}, {B[3 * nv + c], B[4 * nv + c], B[5 * nv + c]}};
-}
-template <typename S, typename V> RBD_HD void store_col(const V& x, S* B, int nv, int c) {
-  B[c] = x.lin.x; B[nv + c] = x.lin.y; B[2 * nv + c] = x.lin.z;
-  B[3 * nv + c] = x.ang.x; B[4 * nv + c] = x.ang.y; B[5 * nv + c] = x.ang.z;
-}
-
-// backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹ and F.
-// writes w.X, w.IA, w.U, w.Dinv, w.F, Minv (upper part). false if not PD.
+// backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
+// writes w.X, w.IA, w.U (world frame), w.Dinv, w.Sw (world frame), w.F
+// (nv x 6), Minv (upper part). false if some D is not positive definite.
 template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
   const int nv = m.nv;
-  for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
-  for (int k = 0; k < 6 * nv * m.nb; ++k) w.F[k] = S(0);
+  // body placements X_0i, articulated inertias start as the body inertias (world frame)
   for (int i = 0; i < m.nb; ++i) {
-    w.X[i] = body_transform(m.body[i], q);
-    w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
+    const BodyDesc<S>& b = m.body[i];
+    w.X[i] = body_transform(b, q);
+    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    w.IA[i] = Mat6<S>::from_inertia(transform_inertia(w.Xw[i], b.I));
   }
+  for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
+  for (int k = 0; k < 6 * nv; ++k) w.F[k] = S(0);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv, c_end = b.v_idx + b.nv_subtree;
     Force<S>* U = w.U + 6 * i;
+    Motion<S>* Sw = w.Sw + 6 * i;
     S* Dinv = w.Dinv + 36 * i;
-    S* F = w.F + 6 * nv * i;
-    if (!aba_joint_inertia(b, w.IA[i], U, Dinv)) return false;
+    // U = IA S, D⁻¹, and IA_λ += IA - U D⁻¹ Uᵀ
+    for (int k = 0; k < ni; ++k) Sw[k] = w.Xw[i].act(joint_subspace_col(b, k));
+    if (!joint_inertia(ni, Sw, w.IA[i], U, Dinv)) return false;
+    if (b.parent >= 0) w.IA[b.parent] += articulated_residual(ni, w.IA[i], U, Dinv);
     // own block: D⁻¹
     for (int k = 0; k < ni; ++k)
       for (int l = 0; l < ni; ++l) Minv[(vi + k) * nv + vi + l] = Dinv[k * ni + l];
     // descendants' columns: -D⁻¹ Sᵀ F
     for (int c = vi + ni; c < c_end; ++c) {
+      const Force<S> fc = load_force(w.F + 6 * c);
       S sf[6];
-      joint_project(b, load_col_force(F, nv, c), sf);
+      for (int l = 0; l < ni; ++l) sf[l] = dot(Sw[l], fc);
       for (int k = 0; k < ni; ++k) {
         S acc = S(0);
         for (int l = 0; l < ni; ++l) acc -= Dinv[k * ni + l] * sf[l];
         Minv[(vi + k) * nv + c] = acc;
       }
     }
+    // F_λ = F_i + U Minv_i· over the subtree columns (in place)
     if (b.parent < 0) continue;
-    // F_i += U Minv_i· ; F_λ += X* F_i over the subtree columns
-    S* Fp = w.F + 6 * nv * b.parent;
     for (int c = vi; c < c_end; ++c) {
-      Force<S> fc = load_col_force(F, nv, c);
+      Force<S> fc = load_force(w.F + 6 * c);
       for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
-      const Force<S> fp = load_col_force(Fp, nv, c) + w.X[i].act(fc);
-      store_col(fp, Fp, nv, c);
+      store(fc, w.F + 6 * c);
     }
-    aba_project_inertia(b, w.X[i], w.IA[i], U, Dinv, w.IA[b.parent]);
   }
   return true;
 }
 
-// forward pass: P_i = X⁻¹ P_λ, Minv_i· -= D⁻¹ Uᵀ P_i, P_i += S Minv_i·
-// over columns ≥ v_idx. writes w.P, Minv (upper part)
+// forward pass over columns ≥ v_idx: Minv_i· -= D⁻¹ Uᵀ P_λ, P_i = P_λ + S Minv_i·
+// reads w.U, w.Sw (world frame), w.Dinv; writes w.P (nb x nv x 6), Minv (upper part)
 template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
   const int nv = m.nv;
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv;
     const Force<S>* U = w.U + 6 * i;
+    const Motion<S>* Sw = w.Sw + 6 * i;
     const S* Dinv = w.Dinv + 36 * i;
     S* P = w.P + 6 * nv * i;
     const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
     for (int c = vi; c < nv; ++c) {
       Motion<S> pc = Motion<S>::zero();
       if (Pp) {
-        pc = w.X[i].act_inv(load_col_motion(Pp, nv, c));
+        pc = load_motion(Pp + 6 * c);
         S up[6];
         for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
         for (int k = 0; k < ni; ++k) {
@@ -96,10 +97,8 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
           Minv[(vi + k) * nv + c] -= acc;
         }
       }
-      S x[6];
-      for (int k = 0; k < ni; ++k) x[k] = Minv[(vi + k) * nv + c];
-      pc += joint_motion(b, x);
-      store_col(pc, P, nv, c);
+      for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
+      store(pc, P + 6 * c);
     }
   }
 }

@@ -1,0 +1,511 @@
+"""Bad input raises a clear exception of the right type whose message names
+the offending argument (or the offending URDF element); valid but unusual
+input (integer arrays, lists, f_ext=[], broadcasting) works.
+
+The array-argument cases run on floating-base HyQ, where nq (19) != nv (18),
+so a configuration of width nv is always a wrong shape."""
+
+import os
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+import rbdkit
+from pinref import URDF_DIR
+
+SPHERICAL = os.path.join(URDF_DIR, "spherical.urdf")
+
+# every RBD method and its array arguments, by keyword
+METHODS = {
+    "inverse_dynamics": ("q", "qd", "qdd", "f_ext"),
+    "aba": ("q", "qd", "tau", "f_ext"),
+    "forward_dynamics": ("q", "qd", "u", "f_ext"),
+    "crba": ("q",),
+    "minv": ("q",),
+    "generalized_gravity": ("q",),
+    "nonlinear_effects": ("q", "qd"),
+    "apply_external_forces": ("f_in", "f_ext"),
+    "integrate": ("q", "v"),
+    "difference": ("q0", "q1"),
+    "dIntegrate": ("q", "v"),
+    "dDifference": ("q0", "q1"),
+    "d2Integrate": ("q", "v"),
+    "time_per_call": ("q", "qd", "tau"),
+}
+KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
+        "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force"}
+OPTIONAL = {("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
+            ("forward_dynamics", "f_ext")}
+WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects")
+METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
+MULTI = [m for m, args in METHODS.items() if len(args) > 1]
+
+
+@pytest.fixture(scope="module")
+def hyq():
+    return rbdkit.robots.load("hyq", floating_base=True)
+
+
+@pytest.fixture(scope="module")
+def rbd(hyq):
+    return rbdkit.RBD(hyq)
+
+
+def valid_value(model, name, seed=0):
+    rng = np.random.default_rng(seed)
+    kind = KIND[name]
+    if kind == "config":
+        return model.random_configuration(rng)
+    if kind == "tangent":
+        return rng.uniform(-1, 1, model.nv)
+    return rng.uniform(-1, 1, (model.nb, 6))
+
+
+def valid_args(model, method):
+    return {a: valid_value(model, a, seed=k) for k, a in enumerate(METHODS[method])}
+
+
+def call(rbd, method, args):
+    if method == "time_per_call":
+        return rbd.time_per_call("crba", iters=1, **args)
+    return getattr(rbd, method)(**args)
+
+
+def width(model, name):
+    return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6)}[KIND[name]]
+
+
+def bad_shapes(model, name):
+    nq, nv, nb = model.nq, model.nv, model.nb
+    kind = KIND[name]
+    if kind == "config":
+        return [(nv,), (nq + 1,), (2, 2, nq), (), (nq, 1), (1, 1, nq)]
+    if kind == "tangent":
+        return [(nq,), (nv - 1,), (2, 2, nv), (), (nv, 1)]
+    return [(nb, 3), (nb + 1, 6), (nb * 6,), (2, 2, nb, 6), (6, nb)]
+
+
+def test_valid_arguments_work(rbd, hyq):
+    # the baseline of every bad-input case below: the same call with valid arguments runs
+    for method in METHODS:
+        out = call(rbd, method, valid_args(hyq, method))
+        assert out is not None
+
+
+# ------------------------------------------------------------ shapes
+
+
+@pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
+def test_wrong_shape(rbd, hyq, method, arg):
+    dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}"}[KIND[arg]]
+    for shape in bad_shapes(hyq, arg):
+        args = valid_args(hyq, method)
+        args[arg] = np.zeros(shape)
+        with pytest.raises(ValueError, match=rf"^{arg}: expected shape .*{dim}.*got shape {re.escape(str(shape))}$"):
+            call(rbd, method, args)
+
+
+@pytest.mark.parametrize("method", MULTI)
+def test_mismatched_batch_sizes(rbd, hyq, method):
+    names = METHODS[method]
+    first = names[0]
+    for other in names[1:]:
+        args = valid_args(hyq, method)
+        args[first] = np.stack([args[first]] * 3)
+        args[other] = np.stack([args[other]] * 2)
+        with pytest.raises(ValueError, match=rf"^{other}: batch size 2 does not match {first}'s batch size 3$"):
+            call(rbd, method, args)
+        # and the other way round
+        args[first], args[other] = args[first][:2], np.stack([args[other][0]] * 3)
+        with pytest.raises(ValueError, match=rf"^{other}: batch size 3 does not match {first}'s batch size 2$"):
+            call(rbd, method, args)
+
+
+@pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
+def test_empty_batch(rbd, hyq, method, arg):
+    args = valid_args(hyq, method)
+    args[arg] = np.zeros((0,) + width(hyq, arg))
+    with pytest.raises(ValueError, match=rf"^{arg}: the batch is empty"):
+        call(rbd, method, args)
+
+
+def test_time_per_call_rejects_a_batch(rbd, hyq):
+    args = {k: np.stack([v, v]) for k, v in valid_args(hyq, "time_per_call").items()}
+    with pytest.raises(ValueError, match="time_per_call: expected one sample, not a batch"):
+        rbd.time_per_call("crba", iters=1, **args)
+
+
+def test_time_per_call_unknown_operation(rbd, hyq):
+    with pytest.raises(ValueError, match="^op: expected one of 'inverse_dynamics'"):
+        rbd.time_per_call("nope", iters=1, **valid_args(hyq, "time_per_call"))
+    for iters in (0, -1, 2.5, True):
+        with pytest.raises(ValueError, match="^iters: expected a positive integer"):
+            rbd.time_per_call("crba", iters=iters, **valid_args(hyq, "time_per_call"))
+
+
+# ------------------------------------------------------------ dtypes
+
+
+def bad_dtype_values(model, method, arg):
+    shape = width(model, arg)
+    vals = [
+        "abc",
+        np.full(shape, "x"),                           # strings of the right shape
+        np.zeros(shape, dtype=complex),
+        np.zeros(shape, dtype=object),
+        np.ones(shape, dtype=bool),
+        {"a": 1},
+        [[0.0] * 3, [0.0]],                            # ragged
+    ]
+    if (method, arg) not in OPTIONAL:
+        vals.append(None)
+    return vals
+
+
+@pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
+def test_wrong_dtype(rbd, hyq, method, arg):
+    for bad in bad_dtype_values(hyq, method, arg):
+        args = valid_args(hyq, method)
+        args[arg] = bad
+        with pytest.raises(TypeError, match=rf"^{arg}: expected a real numeric array"):
+            call(rbd, method, args)
+
+
+def test_complex_with_zero_imaginary_part_is_still_rejected(rbd, hyq):
+    # no silent discarding of an imaginary part, even a zero one
+    q = hyq.neutral().astype(complex)
+    with pytest.raises(TypeError, match="^q: .*complex128"):
+        rbd.crba(q)
+
+
+# ------------------------------------------------------------ values
+
+
+NONFINITE_CASES = list(METHOD_ARGS)
+
+
+@pytest.mark.parametrize("method,arg", NONFINITE_CASES, ids=[f"{m}-{a}" for m, a in NONFINITE_CASES])
+def test_nonfinite_values(rbd, hyq, method, arg):
+    for bad in (np.nan, np.inf, -np.inf):
+        for pos in (0, -1):  # first and last entry (for q: translation and the quaternion's w)
+            args = valid_args(hyq, method)
+            x = np.array(args[arg])
+            x.reshape(-1)[pos] = bad
+            args[arg] = x
+            with pytest.raises(ValueError, match=rf"^{arg}: expected finite values"):
+                call(rbd, method, args)
+        # in the second sample of a batch
+        if method == "time_per_call":
+            continue
+        args = valid_args(hyq, method)
+        x = np.stack([args[arg], args[arg]])
+        x[1].reshape(-1)[1] = bad
+        args[arg] = x
+        with pytest.raises(ValueError, match=rf"^{arg}(\[1\])?: expected finite values"):
+            call(rbd, method, args)
+
+
+@pytest.mark.parametrize("method", WITH_GRAVITY)
+def test_bad_gravity(rbd, hyq, method):
+    for bad in (np.nan, np.inf, -np.inf):
+        with pytest.raises(ValueError, match="^gravity: expected a finite number"):
+            call(rbd, method, {**valid_args(hyq, method), "gravity": bad})
+    for bad in ("9.81", None, True, np.array(-9.81), [-9.81], 1j):
+        with pytest.raises(TypeError, match="^gravity: expected a real number"):
+            call(rbd, method, {**valid_args(hyq, method), "gravity": bad})
+
+
+CONFIG_CASES = [(m, a) for m, a in METHOD_ARGS if KIND[a] == "config"]
+
+
+def set_quat(q, start, quat):
+    q = np.array(q)
+    q[start:start + 4] = quat
+    return q
+
+
+@pytest.mark.parametrize("method,arg", CONFIG_CASES, ids=[f"{m}-{a}" for m, a in CONFIG_CASES])
+def test_bad_floating_base_quaternion(rbd, hyq, method, arg):
+    for quat, norm in (([0, 0, 0, 0], "0"), ([0, 0, 0, 2], "2"), ([0.6, 0.6, 0.6, 0.6], "1.2"),
+                       ([0, 0, 0, 1 + 1e-4], "1.0001")):
+        args = valid_args(hyq, method)
+        args[arg] = set_quat(args[arg], 3, quat)
+        with pytest.raises(ValueError, match=rf"^{arg}: the quaternion of joint 'root_joint' \(q\[3:7\].*"
+                                             rf"must have unit norm, got norm {re.escape(norm)}"):
+            call(rbd, method, args)
+        if method == "time_per_call":
+            continue
+        # the second sample of a batch, named by its index
+        args = valid_args(hyq, method)
+        args[arg] = np.stack([args[arg], set_quat(args[arg], 3, quat)])
+        with pytest.raises(ValueError, match=rf"^{arg}\[1\]: the quaternion of joint 'root_joint'"):
+            call(rbd, method, args)
+
+
+@pytest.mark.parametrize("floating_base", [False, True])
+def test_bad_spherical_joint_quaternion(floating_base):
+    model = rbdkit.Model.from_urdf(SPHERICAL, floating_base=floating_base)
+    rbd = rbdkit.RBD(model)
+    v = np.zeros(model.nv)
+    for name in ("ball1", "ball2", "ball3"):
+        j = model.joint(name)
+        i = j["q_index"]
+        for quat in ([0, 0, 0, 0], [0, 0, 0, 1.01], [1, 1, 0, 0]):
+            q = set_quat(model.neutral(), i, quat)
+            pattern = rf"the quaternion of joint '{name}' \(q\[{i}:{i + 4}\].*unit norm"
+            with pytest.raises(ValueError, match="^q: " + pattern):
+                rbd.crba(q)
+            with pytest.raises(ValueError, match="^q: " + pattern):
+                rbd.inverse_dynamics(q, v)
+            with pytest.raises(ValueError, match="^q: " + pattern):
+                rbd.integrate(q, v)
+            with pytest.raises(ValueError, match="^q1: " + pattern):
+                rbd.difference(model.neutral(), q)
+            with pytest.raises(ValueError, match="^q0: " + pattern):
+                rbd.dDifference(q, model.neutral(), "from")
+
+
+# ------------------------------------------------------------ option arguments
+
+
+def test_bad_with_respect_to(rbd, hyq):
+    q, v = hyq.neutral(), np.zeros(hyq.nv)
+    for bad in ("x", "Q", "", "from", "v ", None, 0, True):
+        with pytest.raises(ValueError, match="^with_respect_to: expected one of 'q', 'v'"):
+            rbd.dIntegrate(q, v, with_respect_to=bad)
+    for bad in ("x", "q", "v", "From", "", None, 1):
+        with pytest.raises(ValueError, match="^with_respect_to: expected one of 'from', 'to'"):
+            rbd.dDifference(q, q, with_respect_to=bad)
+    for bad in ("x", "V", None, 0):
+        with pytest.raises(ValueError, match="^arg1: expected one of 'q', 'v'"):
+            rbd.d2Integrate(q, v, bad, "v")
+        with pytest.raises(ValueError, match="^arg2: expected one of 'q', 'v'"):
+            rbd.d2Integrate(q, v, "v", bad)
+
+
+def test_output_dense_must_be_bool(rbd, hyq):
+    for bad in (1, 0, 1.0, "True", "False", None, np.array(True), [True]):
+        with pytest.raises(TypeError, match="^output_dense: expected a bool"):
+            rbd.minv(hyq.neutral(), output_dense=bad)
+
+
+# ------------------------------------------------------------ models and names
+
+
+def test_rbd_needs_a_model(hyq):
+    for bad in ("hyq", None, 3, hyq._core, rbdkit.RBD(hyq), rbdkit.robots.path("hyq")):
+        with pytest.raises(TypeError, match="^model: expected an rbdkit.Model"):
+            rbdkit.RBD(bad)
+
+
+def test_model_constructor_needs_a_core_model():
+    with pytest.raises(TypeError, match="Model.from_urdf"):
+        rbdkit.Model("iiwa")
+
+
+def test_unknown_robot():
+    for bad in ("nope", "", "iiwa7", "hyq "):
+        with pytest.raises(ValueError, match=rf"^name: unknown robot {re.escape(repr(bad))}; bundled robots are atlas, hyq, iiwa"):
+            rbdkit.robots.load(bad)
+    with pytest.raises(TypeError, match="^name: expected a robot name"):
+        rbdkit.robots.load(3)
+
+
+def test_unknown_frame_and_joint(hyq):
+    with pytest.raises(ValueError, match="unknown frame 'nope' in robot 'hyq'"):
+        hyq.frame("nope")
+    with pytest.raises(ValueError, match="unknown joint 'nope' in robot 'hyq'"):
+        hyq.joint("nope")
+    # a link is a frame but not a joint
+    link = next(f for f in hyq.frame_names if f not in {j["name"] for j in hyq.joints})
+    hyq.frame(link)
+    with pytest.raises(ValueError, match=f"unknown joint '{link}'"):
+        hyq.joint(link)
+    with pytest.raises(TypeError, match="^name: expected a frame name"):
+        hyq.frame(3)
+    with pytest.raises(TypeError, match="^name: expected a joint name"):
+        hyq.joint(None)
+
+
+def test_from_urdf_missing_file(tmp_path):
+    missing = tmp_path / "missing.urdf"
+    for p in (str(missing), missing):
+        with pytest.raises(FileNotFoundError, match=r"^path: no URDF file at '.*missing\.urdf'"):
+            rbdkit.Model.from_urdf(p)
+    with pytest.raises(FileNotFoundError, match="^path: no URDF file"):
+        rbdkit.Model.from_urdf(tmp_path)  # a directory
+
+
+def test_from_urdf_non_path():
+    for bad in (3, None, b"robots/iiwa.urdf", ["robots/iiwa.urdf"], 1.5):
+        with pytest.raises(TypeError, match="^path: expected a file path"):
+            rbdkit.Model.from_urdf(bad)
+    for bad in (None, b"<robot/>", 3):
+        with pytest.raises(TypeError, match="^xml: expected the URDF text as str"):
+            rbdkit.Model.from_urdf_string(bad)
+
+
+# ------------------------------------------------------------ URDF documents
+
+INERTIAL = '<inertial><mass value="{m}"/><inertia ixx="{ixx}" ixy="{ixy}" ixz="0" iyy="{iyy}" iyz="0" izz="0.1"/></inertial>'
+
+
+def link(name, m=1, ixx=0.1, iyy=0.1, ixy=0):
+    return f'<link name="{name}">{INERTIAL.format(m=m, ixx=ixx, iyy=iyy, ixy=ixy)}</link>'
+
+
+def joint(name, parent, child, type="revolute", extra=""):
+    return (f'<joint name="{name}" type="{type}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<axis xyz="0 0 1"/>{extra}</joint>')
+
+
+def robot(*parts):
+    return '<?xml version="1.0"?><robot name="t">' + "".join(parts) + "</robot>"
+
+
+GOOD = robot(link("a"), link("b"), link("c"), joint("j1", "a", "b"), joint("j2", "b", "c"))
+
+BAD_URDF = {
+    "malformed-xml": ('<robot name="t"><link name="a">', r"^URDF: malformed XML"),
+    "empty-document": ("", r"^URDF: malformed XML"),
+    "no-robot": ('<model name="t"><link name="a"/></model>', r"^URDF: no <robot> element"),
+    "no-links": ('<robot name="t"/>', r"^URDF: the robot has no <link>"),
+    "cycle": (robot(link("a"), link("b"), joint("j1", "a", "b"), joint("j2", "b", "a")),
+              r"^URDF: the joints form a cycle"),
+    "cycle-beside-a-root": (robot(link("r"), link("a"), link("b"), link("c"), joint("j0", "r", "c"),
+                                  joint("j1", "a", "b"), joint("j2", "b", "a")),
+                            r"^URDF: the joints form a cycle through link '(a|b)'"),
+    "two-roots": (robot(link("a"), link("b"), link("c"), joint("j1", "a", "b")),
+                  r"^URDF: the robot has 2 root links \('a' and 'c'\)"),
+    "missing-parent-link": (robot(link("a"), link("b"), joint("j1", "zz", "b")),
+                            r"^URDF: joint 'j1' names parent link 'zz', which is not defined"),
+    "missing-child-link": (robot(link("a"), link("b"), joint("j1", "a", "zz")),
+                           r"^URDF: joint 'j1' names child link 'zz', which is not defined"),
+    "unknown-joint-type": (robot(link("a"), link("b"), joint("j1", "a", "b", type="wobbly")),
+                           r"^URDF: joint 'j1' has unknown type 'wobbly'"),
+    "negative-mass": (robot(link("a"), link("b", m=-1), joint("j1", "a", "b")),
+                      r"^URDF: link 'b' has negative mass"),
+    "negative-moment": (robot(link("a"), link("b", iyy=-1), joint("j1", "a", "b")),
+                        r"^URDF: link 'b' has a negative principal moment of inertia iyy="),
+    "mimic-cycle": (robot(link("a"), link("b"), link("c"), joint("j1", "a", "b", extra='<mimic joint="j2"/>'),
+                          joint("j2", "b", "c", extra='<mimic joint="j1"/>')),
+                    r"^URDF: mimic joints form a cycle through joint 'j[12]'"),
+    "mimic-self": (robot(link("a"), link("b"), joint("j1", "a", "b", extra='<mimic joint="j1"/>')),
+                   r"^URDF: mimic joints form a cycle through joint 'j1'"),
+    "mimic-missing-joint": (robot(link("a"), link("b"), joint("j1", "a", "b", extra='<mimic joint="nope"/>')),
+                            r"^URDF: joint 'j1' mimics joint 'nope', which is not defined"),
+    "link-with-two-parents": (robot(link("a"), link("b"), link("c"), joint("j1", "a", "c"), joint("j2", "b", "c"),
+                                    joint("j3", "a", "b")),
+                              r"^URDF: link 'c' is the child of two joints \('j1' and 'j2'\)"),
+    "malformed-number-in-origin": (robot(link("a"), link("b"),
+                                         joint("j1", "a", "b", extra='<origin xyz="0 0.1x 0" rpy="0 0 0"/>')),
+                                   r"^URDF: joint 'j1' origin xyz has '0\.1x', expected a finite number"),
+    "too-few-numbers-in-origin": (robot(link("a"), link("b"), joint("j1", "a", "b", extra='<origin rpy="0 1"/>')),
+                                  r"^URDF: joint 'j1' origin rpy must have 3 numbers"),
+    "nan-in-origin": (robot(link("a"), link("b"), joint("j1", "a", "b", extra='<origin xyz="0 nan 0"/>')),
+                      r"^URDF: joint 'j1' origin xyz has 'nan', expected a finite number"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_URDF), ids=list(BAD_URDF))
+def test_bad_urdf(case):
+    xml, pattern = BAD_URDF[case]
+    for strict in (False, True):
+        for fb in (False, True):
+            with pytest.raises(ValueError, match=pattern):
+                rbdkit.Model.from_urdf_string(xml, floating_base=fb, strict=strict)
+
+
+def test_bad_urdf_file_reports_the_same(tmp_path):
+    xml, pattern = BAD_URDF["missing-parent-link"]
+    p = tmp_path / "bad.urdf"
+    p.write_text(xml)
+    with pytest.raises(ValueError, match=pattern):
+        rbdkit.Model.from_urdf(p)
+
+
+def test_good_urdf_loads_without_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = rbdkit.Model.from_urdf_string(GOOD)
+    assert (m.nq, m.nv, m.nb) == (2, 2, 2)
+
+
+def test_non_psd_inertia():
+    # ixx = iyy = izz = 0.1 with ixy = 0.5: each moment >= 0, but eigenvalue 0.1 - 0.5 < 0
+    xml = robot(link("a"), link("b", ixy=0.5), joint("j1", "a", "b"))
+    with pytest.raises(ValueError, match=r"^URDF: link 'b' has a rotational inertia .*not positive semi-definite"):
+        rbdkit.Model.from_urdf_string(xml, strict=True)
+    with pytest.warns(UserWarning, match=r"link 'b' has a rotational inertia .*not positive semi-definite"):
+        m = rbdkit.Model.from_urdf_string(xml)
+    assert m.nv == 1
+
+
+# ------------------------------------------------------------ valid but unusual input
+
+
+def test_unusual_but_valid_input():
+    model = rbdkit.robots.load("iiwa")
+    rbd = rbdkit.RBD(model)
+    n = model.nv
+    rng = np.random.default_rng(3)
+    qi = rng.integers(-2, 3, n)
+    qdi = rng.integers(-2, 3, n)
+    qddi = rng.integers(-2, 3, n)
+    tau_f = rbd.inverse_dynamics(qi.astype(float), qdi.astype(float), qddi.astype(float))[0]
+
+    # integer arrays on a fixed-base robot
+    assert qi.dtype.kind == "i"
+    np.testing.assert_array_equal(rbd.inverse_dynamics(qi, qdi, qddi)[0], tau_f)
+    np.testing.assert_array_equal(rbd.crba(qi), rbd.crba(qi.astype(float)))
+    np.testing.assert_array_equal(rbd.crba(qi.astype(np.int32)), rbd.crba(qi.astype(float)))
+    # lists (of ints and floats), also nested lists for a batch
+    np.testing.assert_array_equal(rbd.inverse_dynamics(list(qi), [float(x) for x in qdi], qddi.tolist())[0], tau_f)
+    np.testing.assert_array_equal(rbd.inverse_dynamics([qi.tolist()] * 2, qdi, qddi)[0], np.stack([tau_f] * 2))
+    # float32 and non-contiguous arrays
+    np.testing.assert_allclose(rbd.crba(qi.astype(np.float32)), rbd.crba(qi.astype(float)), rtol=0, atol=0)
+    strided = np.zeros((n, 2))
+    strided[:, 0] = qi
+    np.testing.assert_array_equal(rbd.crba(strided[:, 0]), rbd.crba(qi.astype(float)))
+
+    # f_ext=[] (and ()) mean no external forces
+    q, qd, tau = rng.uniform(-1, 1, (3, n))
+    np.testing.assert_array_equal(rbd.inverse_dynamics(q, qd, f_ext=[])[0], rbd.inverse_dynamics(q, qd)[0])
+    np.testing.assert_array_equal(rbd.inverse_dynamics(q, qd, f_ext=())[0], rbd.inverse_dynamics(q, qd)[0])
+    np.testing.assert_array_equal(rbd.aba(q, qd, tau, f_ext=[]), rbd.aba(q, qd, tau))
+    np.testing.assert_array_equal(rbd.forward_dynamics(q, qd, tau, f_ext=[]), rbd.forward_dynamics(q, qd, tau))
+
+    # unbatched qd broadcast against a batched q, and the other way round
+    Q = rng.uniform(-1, 1, (4, n))
+    QD = rng.uniform(-1, 1, (4, n))
+    tau_b = rbd.inverse_dynamics(Q, qd)[0]
+    assert tau_b.shape == (4, n)
+    for k in range(4):
+        np.testing.assert_array_equal(tau_b[k], rbd.inverse_dynamics(Q[k], qd)[0])
+    tau_b = rbd.inverse_dynamics(q, QD, qddi)[0]
+    for k in range(4):
+        np.testing.assert_array_equal(tau_b[k], rbd.inverse_dynamics(q, QD[k], qddi)[0])
+    # a batch of one keeps its batch axis
+    assert rbd.crba(q[None]).shape == (1, n, n)
+
+    # scalar and option variants
+    np.testing.assert_array_equal(rbd.generalized_gravity(q, gravity=-9), rbd.generalized_gravity(q, gravity=-9.0))
+    np.testing.assert_array_equal(rbd.generalized_gravity(q, gravity=np.float32(-2.5)),
+                                  rbd.generalized_gravity(q, gravity=-2.5))
+    np.testing.assert_array_equal(rbd.minv(q, output_dense=np.bool_(False)), rbd.minv(q, output_dense=False))
+    assert rbdkit.robots.load("IIWA14").nv == n
+
+
+def test_unusual_but_valid_floating_base_input(rbd, hyq):
+    # an integer configuration (the neutral one) on a floating base
+    qi = np.zeros(hyq.nq, dtype=int)
+    qi[6] = 1
+    np.testing.assert_array_equal(rbd.crba(qi), rbd.crba(hyq.neutral()))
+    # a quaternion off unit norm by far less than the 1e-6 tolerance, and a negated one
+    q = hyq.neutral()
+    q[6] = 1 + 1e-9
+    rbd.crba(q)
+    q[6] = -1
+    np.testing.assert_allclose(rbd.crba(q), rbd.crba(hyq.neutral()), rtol=0, atol=1e-12)
