@@ -24,8 +24,16 @@ if [[ ${#missing[@]} -gt 0 ]]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
-# ---- Python packages
+# ---- Python itself: pip and the headers the extension compiles against
 PY=${PYTHON:-python3}
+if ! command -v "$PY" >/dev/null || ! "$PY" -m pip --version >/dev/null 2>&1 ||
+   ! "$PY" -c 'import os, sysconfig; raise SystemExit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then
+  echo "setup: apt-get install python3 python3-pip python3-dev"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq python3 python3-pip python3-dev python3-venv >/dev/null
+fi
+
+# ---- Python packages
 export PIP_BREAK_SYSTEM_PACKAGES=1 PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_ROOT_USER_ACTION=ignore
 if [[ $with_test == 1 ]]; then
   "$PY" -m pip install -q -r "$(dirname "$0")/../requirements-dev.txt"

@@ -3,6 +3,7 @@
 #include "rbdkit/dynamics.hpp"
 
 #include <cmath>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -66,6 +67,22 @@ void check_configuration(const Model& m, const double* q, const char* arg, long 
 namespace batch {
 
 namespace {
+// the caller's workspace, or one of our own
+class ScopedWorkspace {
+ public:
+  ScopedWorkspace(const Model& m, Workspace<double>* given) : w_(given) {
+    if (!w_) {
+      own_.reset(new WorkspaceBuffer(m));
+      w_ = &own_->get();
+    }
+  }
+  Workspace<double>& get() { return *w_; }
+
+ private:
+  std::unique_ptr<WorkspaceBuffer> own_;
+  Workspace<double>* w_;
+};
+
 // checks shared by the dynamics entry points
 void check_state(const Model& m, long B, const double* q, const double* qd, const char* qd_name) {
   for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, "q", B > 1 ? s : -1);
@@ -74,16 +91,16 @@ void check_state(const Model& m, long B, const double* q, const double* qd, cons
 }  // namespace
 
 void inverse_dynamics(const Model& m, long B, const double* q, const double* qd, const double* qdd,
-                      const double* fext, double gravity, double* tau, double* v, double* a, double* f) {
+                      const double* fext, double gravity, double* tau, double* v, double* a, double* f,
+                      Workspace<double>* ws) {
   check_state(m, B, q, qd, "qd");
   if (qdd) check_finite(qdd, B * m.nv, "qdd");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  WorkspaceBuffer buf(m);
+  ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const int nb = m.nb();
-  std::vector<Motion<double>> anog(nb);
   for (long s = 0; s < B; ++s) {
     rnea(mv, w, q + s * m.nq, qd + s * m.nv, qdd ? qdd + s * m.nv : nullptr, fext ? fext + s * nb * 6 : nullptr,
          gravity, tau + s * m.nv);
@@ -92,34 +109,34 @@ void inverse_dynamics(const Model& m, long B, const double* q, const double* qd,
     if (f)
       for (int i = 0; i < nb; ++i) store(w.f[i], f + (s * nb + i) * 6);
     if (a) {
-      remove_gravity(mv, w, gravity, anog.data());
-      for (int i = 0; i < nb; ++i) store(anog[i], a + (s * nb + i) * 6);
+      remove_gravity(mv, w, gravity, w.c);  // w.c is free after RNEA
+      for (int i = 0; i < nb; ++i) store(w.c[i], a + (s * nb + i) * 6);
     }
   }
 }
 
-void crba(const Model& m, long B, const double* q, double* M) {
+void crba(const Model& m, long B, const double* q, double* M, Workspace<double>* ws) {
   check_state(m, B, q, nullptr, "");
-  WorkspaceBuffer buf(m);
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) rbd::crba(mv, buf.get(), q + s * m.nq, M + s * m.nv * m.nv);
 }
 
-void minv(const Model& m, long B, const double* q, bool dense, double* Minv) {
+void minv(const Model& m, long B, const double* q, bool dense, double* Minv, Workspace<double>* ws) {
   check_state(m, B, q, nullptr, "");
-  WorkspaceBuffer buf(m);
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
     if (!rbd::minv(mv, buf.get(), q + s * m.nq, dense, Minv + s * m.nv * m.nv)) not_pd("minv", s);
 }
 
 void aba(const Model& m, long B, const double* q, const double* qd, const double* tau, const double* fext,
-         double gravity, double* qdd) {
+         double gravity, double* qdd, Workspace<double>* ws) {
   check_state(m, B, q, qd, "qd");
   check_finite(tau, B * m.nv, "tau");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  WorkspaceBuffer buf(m);
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
     if (!rbd::aba(mv, buf.get(), q + s * m.nq, qd + s * m.nv, tau + s * m.nv, fext ? fext + s * m.nb() * 6 : nullptr,
@@ -128,12 +145,12 @@ void aba(const Model& m, long B, const double* q, const double* qd, const double
 }
 
 void forward_dynamics(const Model& m, long B, const double* q, const double* qd, const double* tau,
-                      const double* fext, double gravity, double* qdd) {
+                      const double* fext, double gravity, double* qdd, Workspace<double>* ws) {
   check_state(m, B, q, qd, "qd");
   check_finite(tau, B * m.nv, "u");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  WorkspaceBuffer buf(m);
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
     if (!rbd::forward_dynamics(mv, buf.get(), q + s * m.nq, qd + s * m.nv, tau + s * m.nv,
@@ -245,21 +262,22 @@ Eigen::VectorXd Dynamics::inverse_dynamics(const Eigen::VectorXd& q, const Eigen
   std::vector<double> tmp;
   Eigen::VectorXd tau(model_.nv);
   batch::inverse_dynamics(model_, 1, q.data(), qd.data(), qdd.size() ? qdd.data() : nullptr,
-                          fext_ptr(model_, fext, tmp), gravity, tau.data(), nullptr, nullptr, nullptr);
+                          fext_ptr(model_, fext, tmp), gravity, tau.data(), nullptr, nullptr, nullptr,
+                          &ws_.get());
   return tau;
 }
 
 Eigen::MatrixXd Dynamics::crba(const Eigen::VectorXd& q) {
   expect_size(q, model_.nq, "q", "nq");
   RowMat M(model_.nv, model_.nv);
-  batch::crba(model_, 1, q.data(), M.data());
+  batch::crba(model_, 1, q.data(), M.data(), &ws_.get());
   return M;
 }
 
 Eigen::MatrixXd Dynamics::minv(const Eigen::VectorXd& q, bool dense) {
   expect_size(q, model_.nq, "q", "nq");
   RowMat Mi(model_.nv, model_.nv);
-  batch::minv(model_, 1, q.data(), dense, Mi.data());
+  batch::minv(model_, 1, q.data(), dense, Mi.data(), &ws_.get());
   return Mi;
 }
 
@@ -270,7 +288,8 @@ Eigen::VectorXd Dynamics::aba(const Eigen::VectorXd& q, const Eigen::VectorXd& q
   expect_size(tau, model_.nv, "tau", "nv");
   std::vector<double> tmp;
   Eigen::VectorXd qdd(model_.nv);
-  batch::aba(model_, 1, q.data(), qd.data(), tau.data(), fext_ptr(model_, fext, tmp), gravity, qdd.data());
+  batch::aba(model_, 1, q.data(), qd.data(), tau.data(), fext_ptr(model_, fext, tmp), gravity, qdd.data(),
+             &ws_.get());
   return qdd;
 }
 
@@ -282,7 +301,7 @@ Eigen::VectorXd Dynamics::forward_dynamics(const Eigen::VectorXd& q, const Eigen
   std::vector<double> tmp;
   Eigen::VectorXd qdd(model_.nv);
   batch::forward_dynamics(model_, 1, q.data(), qd.data(), tau.data(), fext_ptr(model_, fext, tmp), gravity,
-                          qdd.data());
+                          qdd.data(), &ws_.get());
   return qdd;
 }
 

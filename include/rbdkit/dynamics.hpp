@@ -40,20 +40,24 @@ void check_finite(const double* x, long n, const char* arg);
 // free-flyer and spherical joint; `sample` only labels the message (-1: none)
 void check_configuration(const Model& m, const double* q, const char* arg, long sample = -1);
 
+// The dynamics functions take an optional workspace (made with
+// WorkspaceBuffer for the same model); without one they allocate their own
+// once per call.
 namespace batch {
 // tau (B x nv); per-body v, a (without gravity), f (joint force) (B x nb x 6) when not null
 void inverse_dynamics(const Model& m, long B, const double* q, const double* qd, const double* qdd,
-                      const double* fext, double gravity, double* tau, double* v, double* a, double* f);
+                      const double* fext, double gravity, double* tau, double* v, double* a, double* f,
+                      Workspace<double>* ws = nullptr);
 // M (B x nv x nv)
-void crba(const Model& m, long B, const double* q, double* M);
+void crba(const Model& m, long B, const double* q, double* M, Workspace<double>* ws = nullptr);
 // Minv (B x nv x nv); upper triangle only when dense is false
-void minv(const Model& m, long B, const double* q, bool dense, double* Minv);
+void minv(const Model& m, long B, const double* q, bool dense, double* Minv, Workspace<double>* ws = nullptr);
 // qdd (B x nv) by the articulated-body algorithm
 void aba(const Model& m, long B, const double* q, const double* qd, const double* tau, const double* fext,
-         double gravity, double* qdd);
+         double gravity, double* qdd, Workspace<double>* ws = nullptr);
 // qdd (B x nv) = M⁻¹ (tau - c)
 void forward_dynamics(const Model& m, long B, const double* q, const double* qd, const double* tau,
-                      const double* fext, double gravity, double* qdd);
+                      const double* fext, double gravity, double* qdd, Workspace<double>* ws = nullptr);
 // q_next (B x nq)
 void integrate(const Model& m, long B, const double* q, const double* v, double* out);
 // v (B x nv)
