@@ -21,6 +21,11 @@ template <typename S> struct Workspace {
   Force<S>* U;       // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
   Motion<S>* Sw;     // (nb x 6)    minv: motion subspace columns in the world frame
   S* Dinv;           // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
+  Motion<S>* dVdq;   // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (world frame)
+  Motion<S>* dAdq;   // (nb x 6)    rnea_derivatives: a_λ × s + v_λ × dVdq
+  Motion<S>* dAdv;   // (nb x 6)    rnea_derivatives: v × s + dVdq
+  Force<S>* h;       // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (world)
+  Mat6<S>* B;        // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
   S* u;              // (nv)        aba: u = tau - Sᵀ·pA
   S* F;              // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
   S* P;              // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame
@@ -42,6 +47,11 @@ template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
   add(sizeof(Force<S>) * 6 * nb);
   add(sizeof(Motion<S>) * 6 * nb);
   add(sizeof(S) * 36 * nb);
+  add(sizeof(Motion<S>) * 6 * nb);
+  add(sizeof(Motion<S>) * 6 * nb);
+  add(sizeof(Motion<S>) * 6 * nb);
+  add(sizeof(Force<S>) * nb);
+  add(sizeof(Mat6<S>) * nb);
   add(sizeof(S) * nv);
   add(sizeof(S) * 6 * nv);
   add(sizeof(S) * 6 * nv * nb);
@@ -70,6 +80,11 @@ template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, 
   w.U = static_cast<Force<S>*>(take(sizeof(Force<S>) * 6 * nb));
   w.Sw = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 6 * nb));
   w.Dinv = static_cast<S*>(take(sizeof(S) * 36 * nb));
+  w.dVdq = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 6 * nb));
+  w.dAdq = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 6 * nb));
+  w.dAdv = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 6 * nb));
+  w.h = static_cast<Force<S>*>(take(sizeof(Force<S>) * nb));
+  w.B = static_cast<Mat6<S>*>(take(sizeof(Mat6<S>) * nb));
   w.u = static_cast<S*>(take(sizeof(S) * nv));
   w.F = static_cast<S*>(take(sizeof(S) * 6 * nv));
   w.P = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));

@@ -18,6 +18,8 @@
 
 namespace nb = nanobind;
 using namespace nb::literals;
+
+void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 using rbd::Model;
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
@@ -61,6 +63,7 @@ nb::dict joint_dict(const rbd::JointInfo& j) {
 
 NB_MODULE(_core, m) {
   m.doc() = "rbdkit compiled core";
+  bind_derivatives(m);
 
   nb::class_<Model>(m, "Model")
       .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false)

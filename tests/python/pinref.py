@@ -179,6 +179,36 @@ class Reference:
             return self.G.T @ qdd
         return np.linalg.solve(self.crba(q), tau - self.nle(q, v, g, fext))
 
+    def rnea_derivatives(self, q, v, a, g=-9.81, fext=None):
+        """(∂tau/∂q, ∂tau/∂qd) in reduced tangent coordinates"""
+        self.set_gravity(g)
+        args = (self.pin, self.data, self.q(q), self.v(v), self.v(a))
+        dq, dv, _ = (pin.computeRNEADerivatives(*args, self.fext(fext)) if fext is not None
+                     else pin.computeRNEADerivatives(*args))
+        return self.G.T @ dq @ self.G, self.G.T @ dv @ self.G
+
+    def aba_derivatives(self, q, v, tau, g=-9.81, fext=None):
+        """(∂qdd/∂q, ∂qdd/∂qd): Pinocchio's computeABADerivatives, or for mimic
+        models -(GᵀMG)⁻¹ Gᵀ ∂ID G at the reduced forward dynamics"""
+        if not self.model.has_mimic:
+            self.set_gravity(g)
+            args = (self.pin, self.data, self.q(q), self.v(v), self.G @ tau)
+            if fext is not None:
+                pin.computeABADerivatives(*args, self.fext(fext))
+            else:
+                pin.computeABADerivatives(*args)
+            return self.G.T @ self.data.ddq_dq @ self.G, self.G.T @ self.data.ddq_dv @ self.G
+        qdd = self.forward(q, v, tau, g, fext)
+        dq, dv = self.rnea_derivatives(q, v, qdd, g, fext)
+        M = self.crba(q)
+        return -np.linalg.solve(M, dq), -np.linalg.solve(M, dv)
+
+    def body_jacobian(self, q, body):
+        """Jacobian (6, nv) of an rbdkit body in its own frame"""
+        jid = next(j for j, b in self.body_of_joint.items() if b == body)
+        pin.computeJointJacobians(self.pin, self.data, self.q(q))
+        return pin.getJointJacobian(self.pin, self.data, jid, pin.LOCAL) @ self.G
+
     def minv(self, q):
         if not self.model.has_mimic:
             Mi = pin.computeMinverse(self.pin, self.data, self.q(q))

@@ -1,0 +1,90 @@
+// rbdkit/algorithms/aba_derivatives.hpp — first derivatives of forward
+// dynamics and the external-force sensitivities.
+//
+//   qdd = FD(q, qd, tau, f_ext)  satisfies  ID(q, qd, qdd, f_ext) = tau, so
+//   ∂qdd/∂x = -M⁻¹ ∂ID/∂x |_(qdd = FD)     for x = q (tangent), qd
+//   ∂tau/∂f_ext_b = -J_bᵀ,  ∂qdd/∂f_ext_b = M⁻¹ J_bᵀ   (J_b: body b's Jacobian, body frame)
+#pragma once
+
+#include "aba.hpp"
+#include "minv.hpp"
+#include "rnea_derivatives.hpp"
+
+namespace rbd {
+
+// w.dense <- M⁻¹ (direct inverse), or the Cholesky factor of M for mimic
+// models; false if M is not PD
+template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<S>& w, const S* q) {
+  if (m.has_mimic) {
+    crba(m, w, q, w.dense);
+    return cholesky(w.dense, m.nv);
+  }
+  return minv(m, w, q, true, w.dense);
+}
+
+// D (nv x cols, row-major) <- -M⁻¹ D, column by column, after prepare_minv
+template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspace<S>& w, S* D, int cols) {
+  const int nv = m.nv;
+  const S* Mi = w.dense;
+  S* tmp = w.dense + nv * nv;
+  for (int c = 0; c < cols; ++c) {
+    for (int r = 0; r < nv; ++r) tmp[r] = D[r * cols + c];
+    if (m.has_mimic) {
+      cholesky_solve(Mi, nv, tmp);
+      for (int r = 0; r < nv; ++r) D[r * cols + c] = -tmp[r];
+    } else {
+      for (int r = 0; r < nv; ++r) {
+        S acc = S(0);
+        for (int k = 0; k < nv; ++k) acc += Mi[r * nv + k] * tmp[k];
+        D[r * cols + c] = -acc;
+      }
+    }
+  }
+}
+
+// qdd (nv), ∂qdd/∂q and ∂qdd/∂qd (nv x nv each). false if M is not PD.
+template <typename S>
+RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+                            const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
+  if (!aba(m, w, q, qd, tau, fext, gravity, qdd)) return false;
+  rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd);
+  if (!prepare_minv(m, w, q)) return false;
+  apply_neg_minv(m, w, dqdd_dq, m.nv);
+  apply_neg_minv(m, w, dqdd_dqd, m.nv);
+  return true;
+}
+
+// body Jacobians in body coordinates, transposed and negated:
+// dtau_dfext (nb x nv x 6): [b][r][c] = ∂tau_r/∂f_ext_b[c] = -(J_b)[c][r];
+// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X, w.Xw, w.Sw
+template <typename S>
+RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, S* dtau_dfext, S* dqdd_dfext) {
+  const int nv = m.nv, nb = m.nb;
+  for (int k = 0; k < nb * nv * 6; ++k) dtau_dfext[k] = S(0);
+  // world-frame subspace columns
+  for (int i = 0; i < nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    w.X[i] = body_transform(b, q);
+    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    for (int k = 0; k < b.nv; ++k) w.Sw[6 * i + k] = w.Xw[i].act(joint_subspace_col(b, k));
+  }
+  // column k of J_b (body frame) = X_0b⁻¹ s_k for k on b's support
+  for (int bb = 0; bb < nb; ++bb) {
+    S* Jt = dtau_dfext + bb * nv * 6;
+    for (int k = bb; k >= 0; k = m.body[k].parent) {
+      const BodyDesc<S>& bk = m.body[k];
+      for (int c = 0; c < bk.nv; ++c) {
+        S col[6];
+        store(w.Xw[bb].act_inv(w.Sw[6 * k + c]), col);
+        for (int r = 0; r < 6; ++r) Jt[(bk.v_idx + c) * 6 + r] -= col[r];
+      }
+    }
+  }
+  // M⁻¹ Jᵀ = -M⁻¹ (-Jᵀ), one body block (nv x 6) at a time
+  for (int k = 0; k < nb * nv * 6; ++k) dqdd_dfext[k] = dtau_dfext[k];
+  if (!prepare_minv(m, w, q)) return false;
+  for (int bb = 0; bb < nb; ++bb) apply_neg_minv(m, w, dqdd_dfext + bb * nv * 6, 6);
+  return true;
+}
+
+}  // namespace rbd

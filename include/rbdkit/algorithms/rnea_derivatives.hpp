@@ -1,0 +1,169 @@
+// rbdkit/algorithms/rnea_derivatives.hpp — analytical first derivatives of
+// inverse dynamics, ∂tau/∂q and ∂tau/∂qd, in O(n·d) (d: tree depth), after
+// Carpentier & Mansard, "Analytical derivatives of rigid body dynamics
+// algorithms" (RSS 2018), in world coordinates.
+//
+// In the world frame a tangent step δ on DoF k moves the whole subtree of k
+// rigidly with the twist s_k δ. Every world quantity attached to that subtree
+// then changes by s_k × (·), which cancels in tau_j = s_j·F_j for j in the
+// subtree; what remains are the sensitivities of the DoF columns
+//     dVdq_k = v_λ × s_k,   dAdq_k = a_λ × s_k + v_λ × dVdq_k,
+//     dAdv_k = v_k × s_k + dVdq_k
+// acting through the subtree composites Ic (inertia), Bc = Σ(v ×* I - I v×)
+// and hc (momentum):
+//     j in subtree(k):   ∂tau_j/∂q_k  = dAdq_k · Ic_j s_j + dVdq_k · Bt_j
+//                        ∂tau_j/∂qd_k = dAdv_k · Ic_j s_j + s_k · Bt_j,
+//                        Bt_j = Bc_jᵀ s_j - s_j ×* hc_j
+//     j above k:         ∂tau_j/∂q_k  = s_j · (s_k ×* F_k + Ic_k dAdq_k + Bc_k dVdq_k + dVdq_k ×* hc_k)
+//                        ∂tau_j/∂qd_k = s_j · (Ic_k dAdv_k + Bc_k s_k + s_k ×* hc_k)
+// Derivatives are in the tangent space (q ← integrate(q, δ)); mimic bodies
+// add their terms into their target's column (the reduced derivative).
+#pragma once
+
+#include "../workspace.hpp"
+
+namespace rbd {
+
+// Mᵀ m for a 6x6 motion-to-force matrix M, the result read as a force
+template <typename S> RBD_HD Force<S> mul_t(const Mat6<S>& M, const Motion<S>& m) {
+  const S in[6] = {m.lin.x, m.lin.y, m.lin.z, m.ang.x, m.ang.y, m.ang.z};
+  S out[6];
+  for (int c = 0; c < 6; ++c) {
+    S acc = S(0);
+    for (int r = 0; r < 6; ++r) acc += M.m[6 * r + c] * in[r];
+    out[c] = acc;
+  }
+  return {{out[0], out[1], out[2]}, {out[3], out[4], out[5]}};
+}
+
+// B = v ×* I - I v× (the rate of change of a world inertia moving with v)
+template <typename S> RBD_HD Mat6<S> inertia_variation(const Inertia<S>& I, const Motion<S>& v) {
+  Mat6<S> B;
+  for (int c = 0; c < 6; ++c) {
+    Motion<S> e = Motion<S>::zero();
+    if (c < 3) e.lin[c] = S(1);
+    else e.ang[c - 3] = S(1);
+    const Force<S> col = cross(v, I * e) - I * cross(v, e);
+    for (int r = 0; r < 3; ++r) {
+      B(r, c) = col.lin[r];
+      B(r + 3, c) = col.ang[r];
+    }
+  }
+  return B;
+}
+
+// forward pass: world placements, subspace columns, velocities, accelerations,
+// column sensitivities, and per-body inertia, momentum, force and B.
+//   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null)
+//   writes w.X, w.Xw, w.Sw, w.v, w.a (world, gravity included), w.dVdq,
+//   w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B
+template <typename S>
+RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
+                                          const S* qdd, const S* fext, S gravity) {
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    const int p = b.parent;
+    // placement and world-frame motion subspace
+    w.X[i] = body_transform(b, q);
+    w.Xw[i] = p >= 0 ? w.Xw[p] * w.X[i] : w.X[i];
+    Motion<S>* s = w.Sw + 6 * i;
+    for (int k = 0; k < b.nv; ++k) s[k] = w.Xw[i].act(joint_subspace_col(b, k));
+    // v_i = v_λ + s qd,  a_i = a_λ + s qdd + v_i × s qd
+    Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
+    if (p >= 0) {
+      vp = w.v[p];
+      ap = w.a[p];
+    } else {
+      ap.lin.z = -gravity;
+    }
+    Motion<S> vJ = Motion<S>::zero(), aJ = Motion<S>::zero();
+    for (int k = 0; k < b.nv; ++k) {
+      vJ += qd[b.v_idx + k] * s[k];
+      if (qdd) aJ += qdd[b.v_idx + k] * s[k];
+    }
+    w.v[i] = vp + vJ;
+    w.a[i] = ap + aJ + cross(w.v[i], vJ);
+    // column sensitivities
+    for (int k = 0; k < b.nv; ++k) {
+      const Motion<S> dv = cross(vp, s[k]);
+      w.dVdq[6 * i + k] = dv;
+      w.dAdq[6 * i + k] = cross(ap, s[k]) + cross(vp, dv);
+      w.dAdv[6 * i + k] = cross(w.v[i], s[k]) + dv;
+    }
+    // body inertia, momentum and net force in the world frame
+    const Inertia<S> oI = transform_inertia(w.Xw[i], b.I);
+    w.Ic[i] = oI;
+    w.h[i] = oI * w.v[i];
+    w.f[i] = oI * w.a[i] + cross(w.v[i], w.h[i]);
+    if (fext) w.f[i] -= w.Xw[i].act(load_force(fext + 6 * i));
+    w.B[i] = inertia_variation(oI, w.v[i]);
+  }
+}
+
+// backward pass: subtree composites and the two derivative matrices.
+//   writes dtau_dq, dtau_dqd (nv x nv, row-major), tau (nv, or null), and
+//   turns w.Ic, w.h, w.f, w.B into subtree sums
+template <typename S>
+RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* dtau_dq, S* dtau_dqd,
+                                           S* tau) {
+  const int nv = m.nv;
+  for (int k = 0; k < nv * nv; ++k) dtau_dq[k] = S(0), dtau_dqd[k] = S(0);
+  if (tau)
+    for (int k = 0; k < nv; ++k) tau[k] = S(0);
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const BodyDesc<S>& bi = m.body[i];
+    const Motion<S>* si = w.Sw + 6 * i;
+    // rows of joint i, columns of i and its ancestors k:
+    //   ∂tau_i/∂q_k = dAdq_k · A_i + dVdq_k · Bt_i,  ∂tau_i/∂qd_k = dAdv_k · A_i + s_k · Bt_i
+    Force<S> A[6], Bt[6];
+    for (int a = 0; a < bi.nv; ++a) {
+      A[a] = w.Ic[i] * si[a];
+      Bt[a] = mul_t(w.B[i], si[a]) - cross(si[a], w.h[i]);
+      if (tau) tau[bi.v_idx + a] += dot(si[a], w.f[i]);
+    }
+    for (int k = i; k >= 0; k = m.body[k].parent) {
+      const BodyDesc<S>& bk = m.body[k];
+      for (int a = 0; a < bi.nv; ++a)
+        for (int c = 0; c < bk.nv; ++c) {
+          const int r = (bi.v_idx + a) * nv + bk.v_idx + c;
+          dtau_dq[r] += dot(w.dAdq[6 * k + c], A[a]) + dot(w.dVdq[6 * k + c], Bt[a]);
+          dtau_dqd[r] += dot(w.dAdv[6 * k + c], A[a]) + dot(w.Sw[6 * k + c], Bt[a]);
+        }
+    }
+    // rows of the strict ancestors j, columns of joint i:
+    //   ∂tau_j/∂q_i = s_j · Psi_i,  ∂tau_j/∂qd_i = s_j · Phi_i
+    if (bi.parent >= 0) {
+      Force<S> Psi[6], Phi[6];
+      for (int c = 0; c < bi.nv; ++c) {
+        const Motion<S>& dv = w.dVdq[6 * i + c];
+        Psi[c] = cross(si[c], w.f[i]) + w.Ic[i] * w.dAdq[6 * i + c] + w.B[i] * dv + cross(dv, w.h[i]);
+        Phi[c] = w.Ic[i] * w.dAdv[6 * i + c] + w.B[i] * si[c] + cross(si[c], w.h[i]);
+      }
+      for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
+        const BodyDesc<S>& bj = m.body[j];
+        for (int a = 0; a < bj.nv; ++a)
+          for (int c = 0; c < bi.nv; ++c) {
+            const int r = (bj.v_idx + a) * nv + bi.v_idx + c;
+            dtau_dq[r] += dot(w.Sw[6 * j + a], Psi[c]);
+            dtau_dqd[r] += dot(w.Sw[6 * j + a], Phi[c]);
+          }
+      }
+      // subtree sums handed to the parent
+      w.Ic[bi.parent] += w.Ic[i];
+      w.h[bi.parent] += w.h[i];
+      w.f[bi.parent] += w.f[i];
+      w.B[bi.parent] += w.B[i];
+    }
+  }
+}
+
+// ∂tau/∂q and ∂tau/∂qd (nv x nv each, row-major) of tau = ID(q, qd, qdd, f_ext);
+// qdd and fext may be null (zero). tau (nv) is written too when not null.
+template <typename S>
+RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
+                             const S* fext, S gravity, S* dtau_dq, S* dtau_dqd, S* tau = nullptr) {
+  rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity);
+  rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
+}
+
+}  // namespace rbd
