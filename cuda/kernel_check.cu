@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/crba.hpp"
 #include "rbdkit/algorithms/minv.hpp"
 #include "rbdkit/algorithms/rnea.hpp"
@@ -24,9 +25,11 @@
 
 using namespace rbd;
 
-// outputs per sample: tau (nv), M (nv²), Minv (nv²), qdd_aba (nv), qdd_fd (nv), q_next (nq), dq (nv)
+// outputs per sample: tau (nv), M (nv²), Minv (nv²), qdd_aba (nv), qdd_fd (nv), q_next (nq), dq (nv),
+// dtau_dq (nv²), dtau_dqd (nv²), dqdd_dq (nv²), dqdd_dqd (nv²), qdd of the gradient call (nv)
+constexpr int kOutputs = 12;
 template <typename S> struct Outputs {
-  S *tau, *M, *Minv, *qdd_aba, *qdd_fd, *q_next, *dq;
+  S *tau, *M, *Minv, *qdd_aba, *qdd_fd, *q_next, *dq, *dtau_dq, *dtau_dqd, *dqdd_dq, *dqdd_dqd, *qdd_grad;
 };
 
 template <typename S>
@@ -45,6 +48,11 @@ __global__ void all_algorithms(ModelView<S> m, int B, const S* q, const S* qd, c
   forward_dynamics(m, w, qs, vs, tau_in + s * nv, static_cast<const S*>(nullptr), gravity, out.qdd_fd + s * nv);
   integrate(m, qs, vs, out.q_next + s * m.nq);
   difference(m, qs, out.q_next + s * m.nq, out.dq + s * nv);
+  // first-order derivatives
+  rnea_derivatives(m, w, qs, vs, vs, static_cast<const S*>(nullptr), gravity, out.dtau_dq + s * nv * nv,
+                   out.dtau_dqd + s * nv * nv);
+  aba_derivatives(m, w, qs, vs, tau_in + s * nv, static_cast<const S*>(nullptr), gravity, out.qdd_grad + s * nv,
+                  out.dqdd_dq + s * nv * nv, out.dqdd_dqd + s * nv * nv);
 }
 
 #define CHECK_CUDA(x)                                                           \
@@ -95,10 +103,12 @@ template <typename S> double run(const Model& model, int B) {
   const unsigned long ws_bytes = (workspace_bytes<S>(nb, nv) + 255ul) & ~255ul;
   unsigned char* d_scratch = nullptr;
   CHECK_CUDA(cudaMalloc(&d_scratch, ws_bytes * B));
-  const size_t sizes[7] = {size_t(nv), size_t(nv * nv), size_t(nv * nv), size_t(nv), size_t(nv), size_t(nq), size_t(nv)};
-  S* d_out[7];
-  for (int k = 0; k < 7; ++k) CHECK_CUDA(cudaMalloc(&d_out[k], sizes[k] * B * sizeof(S)));
-  Outputs<S> out{d_out[0], d_out[1], d_out[2], d_out[3], d_out[4], d_out[5], d_out[6]};
+  const size_t n1 = nv, n2 = size_t(nv) * nv;
+  const size_t sizes[kOutputs] = {n1, n2, n2, n1, n1, size_t(nq), n1, n2, n2, n2, n2, n1};
+  S* d_out[kOutputs];
+  for (int k = 0; k < kOutputs; ++k) CHECK_CUDA(cudaMalloc(&d_out[k], sizes[k] * B * sizeof(S)));
+  Outputs<S> out{d_out[0], d_out[1], d_out[2], d_out[3], d_out[4], d_out[5],
+                 d_out[6], d_out[7], d_out[8], d_out[9], d_out[10], d_out[11]};
   ModelView<S> mv{nb, nq, nv, model.has_mimic() ? 1 : 0, d_bodies};
   all_algorithms<S><<<(B + 63) / 64, 64>>>(mv, B, d_q, d_qd, d_tau, S(-9.81), d_scratch, ws_bytes, out);
   CHECK_CUDA(cudaGetLastError());
@@ -109,7 +119,8 @@ template <typename S> double run(const Model& model, int B) {
   Workspace<double> w = carve_workspace<double>(buf.data(), nb, nv);
   const ModelView<double> hv = model.view();
   double worst = 0;
-  for (int k = 0; k < 7; ++k) {
+  std::vector<double> scratch(2 * n2 + n1);
+  for (int k = 0; k < kOutputs; ++k) {
     std::vector<S> dev(sizes[k] * B);
     CHECK_CUDA(cudaMemcpy(dev.data(), d_out[k], dev.size() * sizeof(S), cudaMemcpyDeviceToHost));
     std::vector<double> ref(sizes[k]);
@@ -124,7 +135,15 @@ template <typename S> double run(const Model& model, int B) {
         case 3: aba(hv, w, qh, vh, tau.data() + s * nv, static_cast<const double*>(nullptr), -9.81, ref.data()); break;
         case 4: forward_dynamics(hv, w, qh, vh, tau.data() + s * nv, static_cast<const double*>(nullptr), -9.81, ref.data()); break;
         case 5: integrate(hv, qh, vh, ref.data()); break;
-        default: integrate(hv, qh, vh, qn.data()); difference(hv, qh, qn.data(), ref.data()); break;
+        case 6: integrate(hv, qh, vh, qn.data()); difference(hv, qh, qn.data(), ref.data()); break;
+        case 7: rnea_derivatives(hv, w, qh, vh, vh, static_cast<const double*>(nullptr), -9.81, ref.data(), scratch.data()); break;
+        case 8: rnea_derivatives(hv, w, qh, vh, vh, static_cast<const double*>(nullptr), -9.81, scratch.data(), ref.data()); break;
+        case 9: aba_derivatives(hv, w, qh, vh, tau.data() + s * nv, static_cast<const double*>(nullptr), -9.81,
+                                scratch.data() + 2 * n2, ref.data(), scratch.data()); break;
+        case 10: aba_derivatives(hv, w, qh, vh, tau.data() + s * nv, static_cast<const double*>(nullptr), -9.81,
+                                 scratch.data() + 2 * n2, scratch.data(), ref.data()); break;
+        default: aba_derivatives(hv, w, qh, vh, tau.data() + s * nv, static_cast<const double*>(nullptr), -9.81,
+                                 ref.data(), scratch.data(), scratch.data() + n2); break;
       }
       double scale = 1;
       for (double x : ref) scale = std::fmax(scale, std::fabs(x));
