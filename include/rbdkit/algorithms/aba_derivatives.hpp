@@ -22,22 +22,30 @@ template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<
   return minv(m, w, q, true, w.dense);
 }
 
-// D (nv x cols, row-major) <- -M⁻¹ D, column by column, after prepare_minv
+// D (nv x cols, row-major) <- -M⁻¹ D, after prepare_minv. Without mimic
+// joints a row-by-row product (the inner loop runs along rows of D, which
+// vectorises); with them, Cholesky solves column by column.
 template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspace<S>& w, S* D, int cols) {
   const int nv = m.nv;
   const S* Mi = w.dense;
-  S* tmp = w.dense + nv * nv;
-  for (int c = 0; c < cols; ++c) {
-    for (int r = 0; r < nv; ++r) tmp[r] = D[r * cols + c];
-    if (m.has_mimic) {
+  if (m.has_mimic) {
+    S* tmp = w.dense + nv * nv;
+    for (int c = 0; c < cols; ++c) {
+      for (int r = 0; r < nv; ++r) tmp[r] = D[r * cols + c];
       cholesky_solve(Mi, nv, tmp);
       for (int r = 0; r < nv; ++r) D[r * cols + c] = -tmp[r];
-    } else {
-      for (int r = 0; r < nv; ++r) {
-        S acc = S(0);
-        for (int k = 0; k < nv; ++k) acc += Mi[r * nv + k] * tmp[k];
-        D[r * cols + c] = -acc;
-      }
+    }
+    return;
+  }
+  S* Dc = w.dense2;  // a copy of D (nv x cols, cols <= nv)
+  for (int k = 0; k < nv * cols; ++k) Dc[k] = D[k];
+  for (int r = 0; r < nv; ++r) {
+    S* out = D + r * cols;
+    for (int c = 0; c < cols; ++c) out[c] = S(0);
+    for (int k = 0; k < nv; ++k) {
+      const S a = -Mi[r * nv + k];
+      const S* row = Dc + k * cols;
+      for (int c = 0; c < cols; ++c) out[c] += a * row[c];
     }
   }
 }
