@@ -30,7 +30,7 @@ template <typename S> struct Workspace {
   S* F;              // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
   S* P;              // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame
   S* dense;          // (nv x nv + 2 nv) dense path (mimic models) and solves
-  S* dense2;         // (nv x nv)   aba_derivatives: a copy of the matrix M⁻¹ multiplies
+  S* dense2;         // (nv x max(nv, 6)) aba_derivatives: a copy of the matrix M⁻¹ multiplies
 };
 
 // bytes needed for one workspace (each array aligned to 16 bytes)
@@ -57,7 +57,7 @@ template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
   add(sizeof(S) * 6 * nv);
   add(sizeof(S) * 6 * nv * nb);
   add(sizeof(S) * (nv * nv + 2 * nv));
-  add(sizeof(S) * nv * nv);
+  add(sizeof(S) * nv * (nv > 6 ? nv : 6));
   return n;
 }
 
@@ -91,7 +91,7 @@ template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, 
   w.F = static_cast<S*>(take(sizeof(S) * 6 * nv));
   w.P = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
   w.dense = static_cast<S*>(take(sizeof(S) * (nv * nv + 2 * nv)));
-  w.dense2 = static_cast<S*>(take(sizeof(S) * nv * nv));
+  w.dense2 = static_cast<S*>(take(sizeof(S) * nv * (nv > 6 ? nv : 6)));
   return w;
 }
 

@@ -37,7 +37,7 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
     }
     return;
   }
-  S* Dc = w.dense2;  // a copy of D (nv x cols, cols <= nv)
+  S* Dc = w.dense2;  // a copy of D (nv x cols, cols <= max(nv, 6))
   for (int k = 0; k < nv * cols; ++k) Dc[k] = D[k];
   for (int r = 0; r < nv; ++r) {
     S* out = D + r * cols;
