@@ -18,6 +18,13 @@ cmake -S . -B build/cpp -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build/cpp -j "$JOBS"
 (cd build/cpp && ctest --output-on-failure -j "$JOBS")
 
+# ---- the same C++ tests under AddressSanitizer and UndefinedBehaviorSanitizer
+san="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
+cmake -S . -B build/sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBDKIT_CUDA_CHECK=OFF \
+  -DCMAKE_CXX_FLAGS="$san" -DCMAKE_EXE_LINKER_FLAGS="$san" >/dev/null
+cmake --build build/sanitize -j "$JOBS"
+(cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E find_package_consumer)
+
 # ---- Python: build and install the package, then pytest
 echo "building the Python package (pip install .) ..."
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation .

@@ -1,0 +1,125 @@
+// First-order derivatives against central finite differences in the tangent
+// space, on every bundled robot and joint-type test model (fixed and
+// floating). Pinocchio equivalence is in tests/python; this suite also runs
+// under the sanitizers.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <random>
+#include <tuple>
+
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/dynamics.hpp"
+
+using namespace rbd;
+
+namespace {
+struct ModelCase {
+  std::string path;
+  bool floating;
+};
+void PrintTo(const ModelCase& c, std::ostream* os) { *os << c.path << (c.floating ? " floating" : " fixed"); }
+
+std::vector<ModelCase> all_cases() {
+  std::vector<ModelCase> out;
+  for (const char* r : {"iiwa", "hyq", "atlas"})
+    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_ROBOTS_DIR) + "/" + r + ".urdf", f});
+  for (const char* r : {"spherical", "helical", "planar", "mixed", "mimic"})
+    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_TEST_URDF_DIR) + "/" + r + ".urdf", f});
+  return out;
+}
+
+class Derivatives : public ::testing::TestWithParam<ModelCase> {};
+
+double max_rel_err(const std::vector<double>& a, const std::vector<double>& b) {
+  double e = 0, s = 1;
+  for (size_t i = 0; i < a.size(); ++i) s = std::max(s, std::fabs(b[i]));
+  for (size_t i = 0; i < a.size(); ++i) e = std::max(e, std::fabs(a[i] - b[i]));
+  return e / s;
+}
+}  // namespace
+
+TEST_P(Derivatives, MatchFiniteDifferences) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  WorkspaceBuffer buf(m);
+  Workspace<double>& w = buf.get();
+  const ModelView<double> mv = m.view();
+  const int nq = m.nq, nv = m.nv, nb = m.nb();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(nv), q(nq), qd(nv), qdd(nv), tau(nv), fext(6 * nb);
+  for (auto& x : d) x = U(rng);
+  integrate(mv, q0.data(), d.data(), q.data());
+  for (int k = 0; k < nv; ++k) qd[k] = 2 * U(rng), qdd[k] = U(rng), tau[k] = 10 * U(rng);
+  for (auto& x : fext) x = U(rng);
+
+  // analytical
+  std::vector<double> Dq(nv * nv), Dv(nv * nv), Fq(nv * nv), Fv(nv * nv), acc(nv);
+  std::vector<double> dtau_df(nb * nv * 6), dqdd_df(nb * nv * 6);
+  rnea_derivatives(mv, w, q.data(), qd.data(), qdd.data(), fext.data(), -9.81, Dq.data(), Dv.data());
+  ASSERT_TRUE(aba_derivatives(mv, w, q.data(), qd.data(), tau.data(), fext.data(), -9.81, acc.data(), Fq.data(),
+                              Fv.data()));
+  ASSERT_TRUE(fext_derivatives(mv, w, q.data(), dtau_df.data(), dqdd_df.data()));
+
+  // central differences: q along integrate, qd and f_ext directly
+  const double h = 1e-6;
+  std::vector<double> fdDq(nv * nv), fdDv(nv * nv), fdFq(nv * nv), fdFv(nv * nv), qp(nq), t1(nv), t2(nv);
+  auto id = [&](const double* qq, const double* vv, const double* ff, double* out) {
+    rnea(mv, w, qq, vv, qdd.data(), ff, -9.81, out);
+  };
+  auto fd = [&](const double* qq, const double* vv, const double* ff, double* out) {
+    ASSERT_TRUE(aba(mv, w, qq, vv, tau.data(), ff, -9.81, out));
+  };
+  for (int k = 0; k < nv; ++k) {
+    std::vector<double> e(nv, 0.0), vp = qd;
+    for (auto [f, DQ, DV] : {std::tuple{0, &fdDq, &fdDv}, std::tuple{1, &fdFq, &fdFv}}) {
+      auto call = f == 0 ? std::function<void(const double*, const double*, double*)>(
+                               [&](const double* a, const double* b, double* o) { id(a, b, fext.data(), o); })
+                         : [&](const double* a, const double* b, double* o) { fd(a, b, fext.data(), o); };
+      e[k] = h;
+      integrate(mv, q.data(), e.data(), qp.data());
+      call(qp.data(), qd.data(), t1.data());
+      e[k] = -h;
+      integrate(mv, q.data(), e.data(), qp.data());
+      call(qp.data(), qd.data(), t2.data());
+      e[k] = 0;
+      for (int r = 0; r < nv; ++r) (*DQ)[r * nv + k] = (t1[r] - t2[r]) / (2 * h);
+      vp[k] = qd[k] + 1e-4;
+      call(q.data(), vp.data(), t1.data());
+      vp[k] = qd[k] - 1e-4;
+      call(q.data(), vp.data(), t2.data());
+      vp[k] = qd[k];
+      for (int r = 0; r < nv; ++r) (*DV)[r * nv + k] = (t1[r] - t2[r]) / 2e-4;
+    }
+  }
+  EXPECT_LT(max_rel_err(Dq, fdDq), 1e-6);
+  EXPECT_LT(max_rel_err(Dv, fdDv), 1e-6);
+  EXPECT_LT(max_rel_err(Fq, fdFq), 1e-6);
+  EXPECT_LT(max_rel_err(Fv, fdFv), 1e-6);
+
+  // f_ext: linear, so differences are exact up to rounding
+  std::vector<double> fdT(nb * nv * 6), fdA(nb * nv * 6), fp = fext;
+  for (int b = 0; b < nb; ++b)
+    for (int c = 0; c < 6; ++c) {
+      fp[6 * b + c] = fext[6 * b + c] + 1e-3;
+      id(q.data(), qd.data(), fp.data(), t1.data());
+      fp[6 * b + c] = fext[6 * b + c] - 1e-3;
+      id(q.data(), qd.data(), fp.data(), t2.data());
+      for (int r = 0; r < nv; ++r) fdT[(b * nv + r) * 6 + c] = (t1[r] - t2[r]) / 2e-3;
+      fp[6 * b + c] = fext[6 * b + c] + 1e-3;
+      fd(q.data(), qd.data(), fp.data(), t1.data());
+      fp[6 * b + c] = fext[6 * b + c] - 1e-3;
+      fd(q.data(), qd.data(), fp.data(), t2.data());
+      fp[6 * b + c] = fext[6 * b + c];
+      for (int r = 0; r < nv; ++r) fdA[(b * nv + r) * 6 + c] = (t1[r] - t2[r]) / 2e-3;
+    }
+  EXPECT_LT(max_rel_err(dtau_df, fdT), 1e-6);
+  EXPECT_LT(max_rel_err(dqdd_df, fdA), 1e-6);
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, Derivatives, ::testing::ValuesIn(all_cases()), [](const auto& info) {
+  std::string p = info.param.path;
+  p = p.substr(p.find_last_of('/') + 1);
+  p = p.substr(0, p.find('.'));
+  return p + (info.param.floating ? "_floating" : "_fixed");
+});
