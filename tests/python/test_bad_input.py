@@ -33,12 +33,32 @@ METHODS = {
     "dDifference": ("q0", "q1"),
     "d2Integrate": ("q", "v"),
     "time_per_call": ("q", "qd", "tau"),
+    "inverse_dynamics_gradient": ("q", "qd", "qdd", "f_ext"),
+    "forward_dynamics_gradient": ("q", "qd", "u", "f_ext"),
+    "f_ext_gradient": ("q",),
+    "inverse_dynamics_fpass": ("q", "qd", "qdd", "f_ext"),
+    "inverse_dynamics_bpass": ("q", "f"),
+    "minv_bpass": ("q",),
+    "minv_fpass": ("q", "minv_b"),
+    "inverse_dynamics_gradient_fpass_dq": ("q", "qd", "qdd"),
+    "inverse_dynamics_gradient_fpass_dqd": ("q", "qd", "qdd"),
+    "inverse_dynamics_gradient_bpass_dq": ("q", "qd", "qdd", "dV_dq", "dA_dq"),
+    "inverse_dynamics_gradient_bpass_dqd": ("q", "qd", "qdd", "S", "dA_dqd"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
-        "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force"}
-OPTIONAL = {("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
+        "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
+        "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols"}
+OPTIONAL = {("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
+            ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
+            ("inverse_dynamics_fpass", "f_ext"), ("inverse_dynamics_gradient_fpass_dq", "qdd"),
+            ("inverse_dynamics_gradient_fpass_dqd", "qdd"), ("inverse_dynamics_gradient_bpass_dq", "qdd"),
+            ("inverse_dynamics_gradient_bpass_dqd", "qdd"),
+            ("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
             ("forward_dynamics", "f_ext")}
-WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects")
+WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
+                "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
+                "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
+                "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
@@ -60,6 +80,10 @@ def valid_value(model, name, seed=0):
         return model.random_configuration(rng)
     if kind == "tangent":
         return rng.uniform(-1, 1, model.nv)
+    if kind == "matrix":
+        return rng.uniform(-1, 1, (model.nv, model.nv))
+    if kind == "cols":
+        return rng.uniform(-1, 1, (model.nb, 6, 6))
     return rng.uniform(-1, 1, (model.nb, 6))
 
 
@@ -74,7 +98,8 @@ def call(rbd, method, args):
 
 
 def width(model, name):
-    return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6)}[KIND[name]]
+    return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6), "matrix": (model.nv, model.nv),
+            "cols": (model.nb, 6, 6)}[KIND[name]]
 
 
 def bad_shapes(model, name):
@@ -84,6 +109,10 @@ def bad_shapes(model, name):
         return [(nv,), (nq + 1,), (2, 2, nq), (), (nq, 1), (1, 1, nq)]
     if kind == "tangent":
         return [(nq,), (nv - 1,), (2, 2, nv), (), (nv, 1)]
+    if kind == "matrix":
+        return [(nv,), (nv, nq), (2, 2, nv, nv), ()]
+    if kind == "cols":
+        return [(nb, 6), (nb, 6, 3), (nb + 1, 6, 6), (2, 2, nb, 6, 6)]
     return [(nb, 3), (nb + 1, 6), (nb * 6,), (2, 2, nb, 6), (6, nb)]
 
 
@@ -99,7 +128,8 @@ def test_valid_arguments_work(rbd, hyq):
 
 @pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
 def test_wrong_shape(rbd, hyq, method, arg):
-    dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}"}[KIND[arg]]
+    dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}", "matrix": f"nv={hyq.nv}",
+           "cols": f"nb={hyq.nb}"}[KIND[arg]]
     for shape in bad_shapes(hyq, arg):
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)

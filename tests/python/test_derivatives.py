@@ -163,3 +163,15 @@ def test_world_subspace_columns_are_the_world_jacobian(ref):
     Jp = pin.computeJointJacobians(ref.pin, ref.data, ref.q(q))
     # mimic bodies add multiplier-scaled columns: compare through G
     assert_close(J, Jp @ ref.G, "world subspace columns")
+
+
+def test_minv_passes_reject_mimic_models():
+    import os
+    from pinref import URDF_DIR
+    m = rbdkit.Model.from_urdf(os.path.join(URDF_DIR, "mimic.urdf"))
+    rbd = rbdkit.RBD(m)
+    q = m.neutral()
+    with pytest.raises(ValueError, match="^minv_bpass: .*mimic joints"):
+        rbd.minv_bpass(q)
+    with pytest.raises(ValueError, match="^minv_fpass: .*mimic joints"):
+        rbd.minv_fpass(q, np.zeros((m.nv, m.nv)))
