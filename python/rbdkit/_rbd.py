@@ -10,12 +10,13 @@ import numpy as np
 
 from . import _core
 from ._checks import Batch, check_choice, check_scalar
+from ._kinematics import KinematicsMixin
 from ._model import Model
 
 GRAVITY = -9.81
 
 
-class RBD:
+class RBD(KinematicsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

@@ -20,6 +20,8 @@ namespace nb = nanobind;
 using namespace nb::literals;
 using rbd::Model;
 
+void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
+
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
@@ -179,4 +181,6 @@ NB_MODULE(_core, m) {
                                       "' (expected inverse_dynamics, crba, minv, aba or forward_dynamics)");
         },
         "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
+
+  bind_kinematics(m);
 }
