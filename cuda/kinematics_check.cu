@@ -27,7 +27,7 @@ __global__ void kinematics_all(ModelView<S> m, int B, const S* q, const S* qd, u
   frame_jacobian_dot(m, w, body, X, kLocalWorldAligned, o + 6 * nv);
   end_effector_pose(w, body, offset, o + 12 * nv);
   end_effector_pose_gradient(m, w, body, offset, o + 12 * nv + 6);
-  end_effector_pose_hessian(m, w, body, offset, o + 18 * nv + 6);
+  end_effector_pose_hessian_analytic(m, w, body, offset, o + 18 * nv + 6);
   if (osc_factor_mass_matrix(m, w, q + s * m.nq)) osc_inertia(m, w, body, offset, o + 18 * nv + 6 * nv * nv + 6);
 }
 

@@ -225,7 +225,7 @@ void end_effector_pose_hessian_analytic(const Model& m, long B, const double* q,
   for (long s = 0; s < B; ++s) {
     rbd::forward_kinematics(mv, w, q + s * m.nq, static_cast<const double*>(nullptr));
     for (long e = 0; e < n; ++e)
-      rbd::end_effector_pose_hessian(mv, w, ee.bodies[e], tool_point<double>(ee, s, e),
+      rbd::end_effector_pose_hessian_analytic(mv, w, ee.bodies[e], tool_point<double>(ee, s, e),
                                      H + (s * n + e) * 6 * nv * nv);
   }
 }

@@ -277,6 +277,20 @@ def test_end_effector_pose_hessian_finite_differences(ref):
             assert_fd(rbd.end_effector_pose_hessian_analytic(q, offsets, names), H_fd, "pose Hessian (analytic)")
 
 
+def test_end_effector_pose_hessian_symmetric_part(ref):
+    # ½(H + Hᵀ) is the Hessian of δ ↦ pose(q ⊕ δ) at δ = 0 (second central differences)
+    rbd = rbdkit.RBD(ref.model)
+    q, h, nv = configs(ref.model, 1, seed=3)[0], 1e-4, ref.model.nv
+    H = rbd.end_effector_pose_hessian_analytic(q)
+    D = np.zeros_like(H)
+    for j in range(nv):
+        for k in range(nv):
+            ej, ek = h * np.eye(nv)[j], h * np.eye(nv)[k]
+            f = [rbd.end_effector_pose(rbd.integrate(q, d)) for d in (ej + ek, ej - ek, ek - ej, -ej - ek)]
+            D[..., j, k] = (f[0] - f[1] - f[2] + f[3]) / (4 * h * h)
+    assert_close(0.5 * (H + np.swapaxes(H, -1, -2)), D, "symmetric part of the pose Hessian", 1e-5)
+
+
 def test_end_effector_hessian_symmetry(ref):
     # symmetric in (j, k) except inside a free-flyer or spherical joint's own block
     rbd = rbdkit.RBD(ref.model)
@@ -401,7 +415,8 @@ def test_unknown_reference_frame(hyq):
     q = hyq.model.neutral()
     name = hyq.model.frame_names[-1]
     for bad in ("local", "GLOBAL", 1, None):
-        with pytest.raises(ValueError, match=r"reference_frame: expected one of 'LOCAL', 'WORLD', 'LOCAL_WORLD_ALIGNED'"):
+        expected = r"reference_frame: expected one of 'LOCAL', 'WORLD', 'LOCAL_WORLD_ALIGNED'"
+        with pytest.raises(ValueError, match=expected):
             hyq.frame_jacobian(q, name, bad)
         with pytest.raises(ValueError, match=r"reference_frame: expected one of"):
             hyq.frame_jacobian_dot(q, np.zeros(hyq.nv), name, bad)

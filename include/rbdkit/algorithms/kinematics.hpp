@@ -1,7 +1,7 @@
 // rbdkit/algorithms/kinematics.hpp — forward kinematics, frame placements,
 // frame Jacobians and their time variation, end-effector poses and their
-// first and second derivatives (Featherstone, RBDA §4.1 and §8.1 for the
-// Jacobian as the stacked world-frame motion subspaces).
+// first and second derivatives. The Jacobian is the stack of the world-frame
+// motion subspaces of the support chain.
 //
 // Frame naming: X_world_body is the placement of a body in the world
 // (x_world = R x_body + p); s = X_world_k · S_k[:, a] is the world-frame
@@ -92,7 +92,8 @@ RBD_HD void frame_jacobian(const ModelView<S>& m, const Workspace<S>& w, int bod
   // support chain: each ancestor-or-self k contributes its world columns
   for (int k = body; k >= 0; k = m.body[k].parent) {
     const BodyDesc<S>& b = m.body[k];
-    for (int a = 0; a < b.nv; ++a) add_column(express_motion(world_subspace_col(m, w, k, a), X_world_F, rf), b.v_idx + a, nv, J);
+    for (int a = 0; a < b.nv; ++a)
+      add_column(express_motion(world_subspace_col(m, w, k, a), X_world_F, rf), b.v_idx + a, nv, J);
   }
 }
 
@@ -192,13 +193,14 @@ RBD_HD void end_effector_pose_gradient(const ModelView<S>& m, const Workspace<S>
 // H (6 x nv x nv, row-major): H[r][j][k] = ∂G[r][k]/∂δ_j, in closed form. For
 // support-chain columns s_j (of body bj) and s_k (of body bk), with
 // [bj ⪯ bk] = 1 when bj is bk or one of its ancestors (then ∂s_k/∂δ_j = s_j × s_k):
-//   position  [bj ⪯ bk] ((s_j × s_k).lin + (s_j × s_k).ang × p) + s_k.ang × ṗ_j,  ṗ_j = s_j.lin + s_j.ang × p
+//   position  [bj ⪯ bk] ((s_j × s_k).lin + (s_j × s_k).ang × p) + s_k.ang × ṗ_j
+//             with ṗ_j = s_j.lin + s_j.ang × p (the tool point moves with s_j)
 //   rpy       E⁻¹ ([bj ⪯ bk] s_j.ang × s_k.ang - dE(u_j) u_k),  u = E⁻¹ s.ang
 // Within a free-flyer or spherical joint every pair counts in both orders, so
 // H is not symmetric in (j, k) there (the tangent columns do not commute).
 template <typename S>
-RBD_HD void end_effector_pose_hessian(const ModelView<S>& m, const Workspace<S>& w, int body, const Vec3<S>& offset,
-                                      S* H) {
+RBD_HD void end_effector_pose_hessian_analytic(const ModelView<S>& m, const Workspace<S>& w, int body,
+                                               const Vec3<S>& offset, S* H) {
   const int nv = m.nv;
   for (int k = 0; k < 6 * nv * nv; ++k) H[k] = S(0);
   const Vec3<S> p = w.Xw[body].act_point(offset);

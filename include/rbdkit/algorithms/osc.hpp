@@ -1,5 +1,5 @@
 // rbdkit/algorithms/osc.hpp — the operational-space inertia of an end-effector
-// point (Khatib 1987; Featherstone, RBDA §8.1):
+// point (Khatib, "the operational space formulation", 1987):
 //
 //   Λ = (J M⁻¹ Jᵀ)⁻¹,   J (6 x nv) the kLocalWorldAligned Jacobian of the point
 //
@@ -67,7 +67,7 @@ RBD_HD bool osc_inertia(const ModelView<S>& m, Workspace<S>& w, int body, const 
       y[i] = acc / L[i * nv + i];
     }
   }
-  // A = J M⁻¹ Jᵀ = Y Yᵀ (rows of Y)
+  // A_rc = y_r · y_c = J_r M⁻¹ J_cᵀ
   S A[36];
   for (int r = 0; r < 6; ++r)
     for (int c = 0; c <= r; ++c) {
