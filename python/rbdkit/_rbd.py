@@ -10,8 +10,8 @@ import numpy as np
 
 from . import _core
 from ._checks import Batch, check_choice, check_scalar
-from ._kinematics import KinematicsMixin
 from ._model import Model
+from ._kinematics import KinematicsMixin
 
 GRAVITY = -9.81
 
