@@ -21,8 +21,10 @@ frame's origin and the angular velocity, in world axes.
 End-effector pose: [x, y, z, roll, pitch, yaw], the world position of the
 tool point (an offset in the end-effector body's frame, default zero) and the
 roll-pitch-yaw angles of the body's orientation in the URDF convention
-R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-π/2, π/2]. At pitch = ±π/2 only
-roll ∓ yaw is defined and the rpy rows of the derivatives are singular.
+R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-π/2, π/2], roll and yaw in
+(-π, π]. At pitch = ±π/2 (gimbal lock) only roll ∓ yaw is defined (the
+returned angles still rebuild R) and the rpy rows of the derivatives are
+singular.
 Derivatives are with respect to tangent perturbations q ⊕ δ (δ of width nv,
 the configuration moved through rbd.integrate):
 

@@ -161,6 +161,25 @@ TEST(Kinematics, OscInertiaInvertsJMinvJt) {
   }
 }
 
+// roll-pitch-yaw angles rebuild the rotation, at and near gimbal lock too
+TEST(Kinematics, RollPitchYawRebuildsRotation) {
+  const Vec3<double> ex = {1, 0, 0}, ey = {0, 1, 0}, ez = {0, 0, 1};
+  const double half_pi = std::acos(0.0);
+  for (double pitch : {0.3, -1.2, half_pi, -half_pi, half_pi - 1e-9, -half_pi + 1e-12})
+    for (double roll : {0.0, 0.7, -2.9})
+      for (double yaw : {0.0, 1.1, 3.0}) {
+        const Mat3<double> R = axis_angle(ez, yaw) * axis_angle(ey, pitch) * axis_angle(ex, roll);
+        const Vec3<double> rpy = rpy_from_matrix(R);
+        const Mat3<double> R2 = axis_angle(ez, rpy.z) * axis_angle(ey, rpy.y) * axis_angle(ex, rpy.x);
+        for (int k = 0; k < 9; ++k) EXPECT_NEAR(R2.m[k], R.m[k], 1e-12) << roll << " " << pitch << " " << yaw;
+        EXPECT_NEAR(rpy.y, pitch, 1e-7);
+        if (std::fabs(pitch) < 1.5) {
+          EXPECT_NEAR(rpy.x, roll, 1e-12);
+          EXPECT_NEAR(rpy.z, yaw, 1e-12);
+        }
+      }
+}
+
 TEST(Kinematics, SingularOperationalSpaceIsAnError) {
   const Model m = robot("hyq", false);  // 3-DoF legs
   EndEffectors ee;

@@ -132,11 +132,17 @@ RBD_HD void frame_jacobian_dot(const ModelView<S>& m, const Workspace<S>& w, int
 
 // ------------------------------------------------------------ roll-pitch-yaw
 
-// (roll, pitch, yaw) of R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-π/2, π/2];
-// at pitch = ±π/2 only roll ∓ yaw is defined (the returned split is arbitrary)
+// (roll, pitch, yaw) of R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-π/2, π/2],
+// roll and yaw in (-π, π]. Roll is read from Rz(yaw)ᵀ R = Ry(pitch) Rx(roll),
+// whose middle row (0, cos roll, -sin roll) does not depend on pitch, so the
+// angles rebuild R even at pitch = ±π/2, where only roll ∓ yaw is defined
+// (yaw is then whatever atan2 makes of the rounding, often 0).
 template <typename S> RBD_HD Vec3<S> rpy_from_matrix(const Mat3<S>& R) {
   const S pitch = satan2(-R(2, 0), ssqrt(R(0, 0) * R(0, 0) + R(1, 0) * R(1, 0)));
-  return {satan2(R(2, 1), R(2, 2)), pitch, satan2(R(1, 0), R(0, 0))};
+  const S yaw = satan2(R(1, 0), R(0, 0));
+  const S cy = scos(yaw), sy = ssin(yaw);
+  const S roll = satan2(sy * R(0, 2) - cy * R(1, 2), cy * R(1, 1) - sy * R(0, 1));
+  return {roll, pitch, yaw};
 }
 
 // E(rpy): world angular velocity ω = E · d(rpy)/dt; columns Rz Ry e_x, Rz e_y, e_z
