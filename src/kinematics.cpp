@@ -40,13 +40,18 @@ std::vector<int> end_effector_bodies(const Model& m, const std::vector<std::stri
   if (joint_names.empty()) throw std::invalid_argument("ee_joint_names: expected at least one joint name, got none");
   std::vector<int> out;
   for (const auto& name : joint_names) {
-    // a fixed joint is only a frame: say which moving joint carries it
-    for (const auto& f : m.frames)
-      if (f.kind == "joint" && f.name == name && (f.body < 0 || m.joints[f.body].name != name)) {
-        const std::string carrier = f.body < 0 ? "the world (fixed base)" : "joint '" + m.joints[f.body].name + "'";
-        throw std::invalid_argument("ee_joint_names: joint '" + name + "' is fixed (merged into the body of " +
-                                    carrier + "); name a moving joint and give the tool point as an offset");
-      }
+    // a joint frame that moves no body of its own: a planar joint (split into
+    // <name>_x, <name>_y, <name>_rot) or a fixed joint (merged into a body)
+    for (const auto& f : m.frames) {
+      if (f.kind != "joint" || f.name != name || (f.body >= 0 && m.joints[f.body].name == name)) continue;
+      if (f.body >= 0 && m.joints[f.body].name == name + "_rot")
+        throw std::invalid_argument("ee_joint_names: joint '" + name + "' is a planar joint, split into '" + name +
+                                    "_x', '" + name + "_y' and '" + name + "_rot'; name '" + name +
+                                    "_rot', which moves its child link");
+      const std::string carrier = f.body < 0 ? "the world (fixed base)" : "joint '" + m.joints[f.body].name + "'";
+      throw std::invalid_argument("ee_joint_names: joint '" + name + "' is fixed (merged into the body of " +
+                                  carrier + "); name a moving joint and give the tool point as an offset");
+    }
     try {
       out.push_back(m.joint_index(name));
     } catch (const std::invalid_argument& e) {

@@ -405,10 +405,17 @@ def test_unknown_names(hyq):
             getattr(hyq, fn)(q, None, ["nope"])
 
 
-def test_fixed_joint_as_end_effector():
+def test_fixed_or_planar_joint_as_end_effector():
     rbd = rbdkit.RBD(rbdkit.robots.load("iiwa"))
     with pytest.raises(ValueError, match=r"ee_joint_names: joint 'iiwa_base_joint' is fixed"):
         rbd.end_effector_pose(np.zeros(7), ["iiwa_base_joint"])
+    mixed = rbdkit.RBD(rbdkit.Model.from_urdf(dict((c[0], c[1]) for c in CASES)["mixed-fixed"]))
+    with pytest.raises(ValueError, match=r"ee_joint_names: joint 'tool_fix' is fixed .*joint 'hinge'"):
+        mixed.end_effector_pose(mixed.model.neutral(), ["tool_fix"])
+    planar = rbdkit.RBD(rbdkit.Model.from_urdf(dict((c[0], c[1]) for c in CASES)["planar-fixed"]))
+    with pytest.raises(ValueError, match=r"ee_joint_names: joint 'plane' is a planar joint.*'plane_rot'"):
+        planar.end_effector_pose(planar.model.neutral(), ["plane"])
+    planar.end_effector_pose(planar.model.neutral(), ["plane_rot"])
 
 
 def test_unknown_reference_frame(hyq):
