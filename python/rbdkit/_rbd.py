@@ -12,11 +12,12 @@ from . import _core
 from ._checks import Batch, check_choice, check_scalar
 from ._derivatives import DerivativesMixin
 from ._model import Model
+from ._kinematics import KinematicsMixin
 
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin):
+class RBD(DerivativesMixin, KinematicsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

@@ -22,6 +22,8 @@ using namespace nb::literals;
 void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 using rbd::Model;
 
+void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
+
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
@@ -182,4 +184,6 @@ NB_MODULE(_core, m) {
                                       "' (expected inverse_dynamics, crba, minv, aba or forward_dynamics)");
         },
         "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
+
+  bind_kinematics(m);
 }

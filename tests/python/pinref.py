@@ -77,6 +77,10 @@ def _rebuild(pm, replace):
         jm = replace.get(name, pm.joints[jid])
         new = m.addJoint(pm.parents[jid], jm, pm.jointPlacements[jid], name)
         m.appendBodyToJoint(new, pm.inertias[jid], pin.SE3.Identity())
+    # the frames (links, joints, merged fixed links) under the same ids; their
+    # inertias are already in the joints' inertias
+    for f in list(pm.frames)[1:]:
+        m.addFrame(pin.Frame(f.name, f.parentJoint, f.parentFrame, f.placement, f.type, f.inertia), False)
     return m
 
 
@@ -133,6 +137,18 @@ class Reference:
 
     def v(self, v):
         return self.G @ v
+
+    def frame_id(self, name):
+        """Pinocchio frame id of an rbdkit frame name; a planar joint's frame
+        is the frame of its rotational sub-joint '<name>_rot'"""
+        for n in (name, name + "_rot"):
+            if self.pin.existFrame(n):
+                return self.pin.getFrameId(n)
+        raise KeyError(f"no Pinocchio frame for rbdkit frame '{name}'")
+
+    def joint_id(self, body):
+        """Pinocchio joint id moving rbdkit body `body`"""
+        return next(jid for jid, b in self.body_of_joint.items() if b == body)
 
     def fext(self, f):
         """rbdkit (nb, 6) body-frame forces -> Pinocchio per-joint forces"""

@@ -1,0 +1,180 @@
+"""Kinematics methods of rbdkit.RBD: placements, frame Jacobians and their
+time variation, end-effector poses with their first and second derivatives,
+and the operational-space inertia.
+
+Shapes (each result gains a leading batch axis B when q is batched):
+
+  forward_kinematics(q)                     R (nb, 3, 3), p (nb, 3): X_world_body
+  frame_placement(q, frame_name)            R (3, 3), p (3,): X_world_frame
+  frame_jacobian(q, frame_name, rf)         (6, nv), rows [linear; angular]
+  frame_jacobian_dot(q, qd, frame_name, rf) (6, nv)
+  end_effector_pose(q, ...)                 (n_ee, 6)
+  end_effector_pose_gradient(q, ...)        (n_ee, 6, nv)
+  end_effector_pose_hessian(q, ...)         (n_ee, 6, nv, nv)
+  osc_inertia(q, ...)                       (n_ee, 6, 6)
+
+Reference frames (Pinocchio's getFrameJacobian semantics): "LOCAL" — the
+frame's spatial velocity in its own axes; "WORLD" — the spatial velocity at
+the world origin in world axes; "LOCAL_WORLD_ALIGNED" — the velocity of the
+frame's origin and the angular velocity, in world axes.
+
+End-effector pose: [x, y, z, roll, pitch, yaw], the world position of the
+tool point (an offset in the end-effector body's frame, default zero) and the
+roll-pitch-yaw angles of the body's orientation in the URDF convention
+R = Rz(yaw) Ry(pitch) Rx(roll), pitch in [-π/2, π/2], roll and yaw in
+(-π, π]. At pitch = ±π/2 (gimbal lock) only roll ∓ yaw is defined (the
+returned angles still rebuild R) and the rpy rows of the derivatives are
+singular.
+Derivatives are with respect to tangent perturbations q ⊕ δ (δ of width nv,
+the configuration moved through rbd.integrate):
+
+  gradient[e, r, k]   = ∂pose[e, r] / ∂δ_k
+  hessian[e, r, j, k] = ∂gradient[e, r, k] / ∂δ_j   (the gradient evaluated at q ⊕ δ)
+
+The Hessian is what central differences of the gradient through integrate
+give. It is symmetric in (j, k) for 1-DoF joints, but not within a
+free-flyer or spherical joint, whose tangent directions do not commute.
+"""
+
+import numpy as np
+
+from . import _core
+from ._checks import Batch, as_real_array, check_choice
+
+REFERENCE_FRAMES = ("LOCAL", "WORLD", "LOCAL_WORLD_ALIGNED")
+
+
+class KinematicsMixin:
+    """Kinematics methods of RBD (see the module doc for shapes and conventions)."""
+
+    # ---- argument helpers
+    def _frame(self, frame_name, name="frame_name"):
+        if not isinstance(frame_name, str):
+            raise TypeError(f"{name}: expected a frame name (str), got {type(frame_name).__name__}")
+        return _core.frame_from_name(self._m, frame_name)
+
+    def _reference_frame(self, reference_frame):
+        return check_choice(reference_frame, "reference_frame", REFERENCE_FRAMES)
+
+    def _ee_bodies(self, ee_joint_names, name="ee_joint_names"):
+        """body indices of the end effectors: the leaf bodies by default"""
+        if ee_joint_names is None:
+            return list(_core.leaf_bodies(self._m))
+        if isinstance(ee_joint_names, str):
+            ee_joint_names = [ee_joint_names]
+        if not isinstance(ee_joint_names, (list, tuple)):
+            raise TypeError(f"{name}: expected a list of joint names (str), got {type(ee_joint_names).__name__}")
+        for n in ee_joint_names:
+            if not isinstance(n, str):
+                raise TypeError(f"{name}: expected joint names (str), got an entry of type {type(n).__name__}")
+        return list(_core.end_effector_bodies(self._m, list(ee_joint_names)))
+
+    def _ee_offsets(self, b, offsets, n_ee, name):
+        """offsets (3,), (n_ee, 3) or (B, n_ee, 3) -> Batch index, None for zero"""
+        if offsets is None:
+            return None
+        a = as_real_array(offsets, name)
+        ok = a.shape in ((3,), (n_ee, 3)) or (a.ndim == 3 and a.shape[1:] == (n_ee, 3))
+        if not ok:
+            raise ValueError(f"{name}: expected shape (3,), (n_ee, 3) or (B, n_ee, 3) with n_ee={n_ee}, "
+                             f"got shape {a.shape}")
+        if a.shape == (3,):
+            a = np.broadcast_to(a, (n_ee, 3))
+        return b.add(a, name, (n_ee, 3), ("n_ee", "3"))
+
+    def _ee_call(self, fn, q, ee_joint_names, offsets, offsets_name, out_shape, *extra):
+        bodies = self._ee_bodies(ee_joint_names)
+        b = Batch()
+        iq = self._q(b, q)
+        io = self._ee_offsets(b, offsets, len(bodies), offsets_name)
+        out = b.out(len(bodies), *out_shape)
+        fn(self._m, b.get(iq), bodies, None if io is None else b.get(io), offsets_name, *extra, out)
+        return b.ret(out)
+
+    # ---- placements
+    def forward_kinematics(self, q):
+        """Placements X_world_body of every body: (R (nb, 3, 3), p (nb, 3)),
+        x_world = R x_body + p; a body's frame is its joint's child frame."""
+        b = Batch()
+        iq = self._q(b, q)
+        R, p = b.out(self.nb, 3, 3), b.out(self.nb, 3)
+        _core.forward_kinematics(self._m, b.get(iq), R, p)
+        return b.ret(R), b.ret(p)
+
+    def frame_placement(self, q, frame_name):
+        """Placement of a named frame (link or joint, fixed ones included) in
+        the world: (R (3, 3), p (3,)), x_world = R x_frame + p (Pinocchio's data.oMf)."""
+        f = self._frame(frame_name)
+        b = Batch()
+        iq = self._q(b, q)
+        R, p = b.out(3, 3), b.out(3)
+        _core.frame_placement(self._m, b.get(iq), f, R, p)
+        return b.ret(R), b.ret(p)
+
+    # ---- frame Jacobians
+    def frame_jacobian(self, q, frame_name, reference_frame="LOCAL"):
+        """Geometric Jacobian J (6, nv) of a named frame, rows [linear;
+        angular], in reference_frame "LOCAL", "WORLD" or
+        "LOCAL_WORLD_ALIGNED" (Pinocchio's getFrameJacobian): J·v is the
+        frame's velocity in that frame."""
+        f = self._frame(frame_name)
+        rf = self._reference_frame(reference_frame)
+        b = Batch()
+        iq = self._q(b, q)
+        J = b.out(6, self.nv)
+        _core.frame_jacobian(self._m, b.get(iq), f, rf, J)
+        return b.ret(J)
+
+    def frame_jacobian_dot(self, q, qd, frame_name, reference_frame="LOCAL"):
+        """Time variation dJ/dt (6, nv) of frame_jacobian(q, frame_name,
+        reference_frame) along qd (Pinocchio's getFrameJacobianTimeVariation):
+        the frame's acceleration in that frame is J·qdd + dJ·qd."""
+        f = self._frame(frame_name)
+        rf = self._reference_frame(reference_frame)
+        b = Batch()
+        iq, iv = self._q(b, q), self._v(b, qd, "qd")
+        dJ = b.out(6, self.nv)
+        _core.frame_jacobian_dot(self._m, b.get(iq), b.get(iv), f, rf, dJ)
+        return b.ret(dJ)
+
+    # ---- end effectors
+    def end_effector_pose(self, q, ee_joint_names=None, ee_offsets=None):
+        """Pose (n_ee, 6) = [x, y, z, roll, pitch, yaw] of each end effector
+        (see the module doc). ee_joint_names: the joints whose bodies are the
+        end effectors (default: the leaf bodies, in body order); ee_offsets:
+        tool points in the end-effector body frames, (3,) for all, (n_ee, 3)
+        or (B, n_ee, 3); default zero."""
+        return self._ee_call(_core.end_effector_pose, q, ee_joint_names, ee_offsets, "ee_offsets", (6,))
+
+    def end_effector_pose_gradient(self, q, ee_joint_names=None, ee_offsets=None):
+        """Analytic gradient (n_ee, 6, nv) of end_effector_pose with respect
+        to tangent perturbations: G[e, r, k] = ∂pose[e, r]/∂δ_k. Position rows
+        are the tool point's world-frame Jacobian; rpy rows E(rpy)⁻¹ times the
+        world angular Jacobian, E mapping rpy rates to angular velocity."""
+        return self._ee_call(_core.end_effector_pose_gradient, q, ee_joint_names, ee_offsets, "ee_offsets",
+                             (6, self.nv))
+
+    def end_effector_pose_hessian(self, q, offsets=None, ee_joint_names=None):
+        """Hessian (n_ee, 6, nv, nv) of end_effector_pose, H[e, r, j, k] =
+        ∂gradient[e, r, k]/∂δ_j, by forward-mode dual numbers through the
+        analytic gradient (exact; one pass per tangent direction). Not
+        symmetric within free-flyer and spherical joints (see the module doc).
+        Note the argument order: offsets before ee_joint_names."""
+        return self._ee_call(_core.end_effector_pose_hessian, q, ee_joint_names, offsets, "offsets",
+                             (6, self.nv, self.nv), False)
+
+    def end_effector_pose_hessian_analytic(self, q, offsets=None, ee_joint_names=None):
+        """end_effector_pose_hessian in closed form: for support-chain columns
+        s_j, s_k with j an ancestor of k (or in the same joint), ∂s_k/∂δ_j =
+        s_j × s_k, and the tool point moves with s_j. Equal to the dual-number
+        Hessian to rounding."""
+        return self._ee_call(_core.end_effector_pose_hessian, q, ee_joint_names, offsets, "offsets",
+                             (6, self.nv, self.nv), True)
+
+    # ---- operational space
+    def osc_inertia(self, q, ee_joint_names=None, ee_offsets=None):
+        """Operational-space inertia Λ (n_ee, 6, 6) = (J M⁻¹ Jᵀ)⁻¹ of each
+        end effector, J (6, nv) the LOCAL_WORLD_ALIGNED Jacobian of its tool
+        point (rows [linear; angular]). ValueError when J M⁻¹ Jᵀ is singular:
+        fewer than 6 DoF reach the end effector, or a singular configuration."""
+        return self._ee_call(_core.osc_inertia, q, ee_joint_names, ee_offsets, "ee_offsets", (6, 6))

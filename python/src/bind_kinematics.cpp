@@ -1,0 +1,98 @@
+// rbdkit._core — bindings of the kinematics family (kinematics_api.hpp).
+//
+// Thin, like bindings.cpp: the Python layer (python/rbdkit/_kinematics.py)
+// checks shapes and resolves names once per call; these functions take
+// C-contiguous float64 arrays with the batch on axis 0, check values in C++
+// and run the batched loops with the GIL released.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include "rbdkit/kinematics_api.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using rbd::Model;
+
+namespace {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+
+long batch_size(const In& q) { return q.ndim() == 0 ? 1 : static_cast<long>(q.shape(0)); }
+
+// end effectors from body indices and optional offsets (B x n_ee x 3)
+rbd::EndEffectors end_effectors(const std::vector<int>& bodies, const std::optional<In>& offsets, const char* arg) {
+  rbd::EndEffectors ee;
+  ee.bodies = bodies;
+  ee.offsets = offsets ? offsets->data() : nullptr;
+  ee.offsets_arg = arg;
+  return ee;
+}
+
+}  // namespace
+
+void bind_kinematics(nb::module_& m) {
+  // ---- names
+  m.def("reference_frame_from_name", &rbd::reference_frame_from_name, "name"_a);
+  m.def("frame_from_name", &rbd::frame_from_name, "model"_a, "name"_a);
+  m.def("leaf_bodies", &rbd::leaf_bodies, "model"_a);
+  m.def("end_effector_bodies", &rbd::end_effector_bodies, "model"_a, "joint_names"_a);
+
+  // ---- placements and frame Jacobians
+  m.def("forward_kinematics", [](const Model& md, In q, Out R, Out p) {
+    nb::gil_scoped_release r;
+    rbd::batch::forward_kinematics(md, batch_size(q), q.data(), R.data(), p.data());
+  });
+  m.def("frame_placement", [](const Model& md, In q, int frame, Out R, Out p) {
+    nb::gil_scoped_release r;
+    rbd::batch::frame_placement(md, batch_size(q), q.data(), frame, R.data(), p.data());
+  });
+  m.def("frame_jacobian", [](const Model& md, In q, int frame, int rf, Out J) {
+    nb::gil_scoped_release r;
+    rbd::batch::frame_jacobian(md, batch_size(q), q.data(), frame, rf, J.data());
+  });
+  m.def("frame_jacobian_dot", [](const Model& md, In q, In qd, int frame, int rf, Out dJ) {
+    nb::gil_scoped_release r;
+    rbd::batch::frame_jacobian_dot(md, batch_size(q), q.data(), qd.data(), frame, rf, dJ.data());
+  });
+
+  // ---- end effectors: bodies (n_ee), offsets (B x n_ee x 3) or None
+  m.def("end_effector_pose",
+        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
+           Out pose) {
+          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
+          nb::gil_scoped_release r;
+          rbd::batch::end_effector_pose(md, batch_size(q), q.data(), ee, pose.data());
+        },
+        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "pose"_a);
+  m.def("end_effector_pose_gradient",
+        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
+           Out G) {
+          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
+          nb::gil_scoped_release r;
+          rbd::batch::end_effector_pose_gradient(md, batch_size(q), q.data(), ee, G.data());
+        },
+        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "G"_a);
+  m.def("end_effector_pose_hessian",
+        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
+           bool analytic, Out H) {
+          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
+          nb::gil_scoped_release r;
+          if (analytic)
+            rbd::batch::end_effector_pose_hessian_analytic(md, batch_size(q), q.data(), ee, H.data());
+          else
+            rbd::batch::end_effector_pose_hessian(md, batch_size(q), q.data(), ee, H.data());
+        },
+        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "analytic"_a, "H"_a);
+  m.def("osc_inertia",
+        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
+           Out Lambda) {
+          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
+          nb::gil_scoped_release r;
+          rbd::batch::osc_inertia(md, batch_size(q), q.data(), ee, Lambda.data());
+        },
+        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "Lambda"_a);
+}
