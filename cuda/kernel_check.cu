@@ -85,18 +85,7 @@ template <typename S> double run(const Model& model, int B) {
     for (int k = 0; k < nv; ++k) qd[s * nv + k] = U(rng), tau[s * nv + k] = 10 * U(rng);
   }
   // the model and inputs in S
-  std::vector<BodyDesc<S>> bodies(nb);
-  for (int i = 0; i < nb; ++i) {
-    const BodyDesc<double>& b = model.bodies[i];
-    BodyDesc<S>& o = bodies[i];
-    o.parent = b.parent; o.type = b.type; o.q_idx = b.q_idx; o.v_idx = b.v_idx; o.nq = b.nq; o.nv = b.nv;
-    o.nv_subtree = b.nv_subtree; o.mimic = b.mimic; o.mult = S(b.mult); o.offset = S(b.offset); o.pitch = S(b.pitch);
-    o.axis = {S(b.axis.x), S(b.axis.y), S(b.axis.z)};
-    for (int k = 0; k < 9; ++k) o.X_tree.R.m[k] = S(b.X_tree.R.m[k]), o.I.I.m[k] = S(b.I.I.m[k]);
-    o.X_tree.p = {S(b.X_tree.p.x), S(b.X_tree.p.y), S(b.X_tree.p.z)};
-    o.I.m = S(b.I.m);
-    o.I.h = {S(b.I.h.x), S(b.I.h.y), S(b.I.h.z)};
-  }
+  const std::vector<BodyDesc<S>> bodies = model.bodies_as<S>();
   std::vector<S> qs(q.begin(), q.end()), qds(qd.begin(), qd.end()), taus(tau.begin(), tau.end());
   BodyDesc<S>* d_bodies = to_device(bodies);
   S *d_q = to_device(qs), *d_qd = to_device(qds), *d_tau = to_device(taus);

@@ -12,7 +12,7 @@ namespace batch {
 namespace {
 void check_inputs(const Model& m, long B, const double* q, const double* qd, const double* qdd, const double* tau,
                   const double* fext, double gravity, const char* tau_name = "tau") {
-  for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, "q", B > 1 ? s : -1);
+  check_configurations(m, B, q, "q");
   if (qd) check_finite(qd, B * m.nv, "qd");
   if (qdd) check_finite(qdd, B * m.nv, "qdd");
   if (tau) check_finite(tau, B * m.nv, tau_name);
@@ -56,13 +56,12 @@ void load_cols(const Model& m, const double* in, Motion<double>* cols) {
 void inverse_dynamics_gradient(const Model& m, long B, const double* q, const double* qd, const double* qdd,
                                const double* fext, double gravity, double* out, Workspace<double>* ws) {
   check_inputs(m, B, q, qd, qdd, nullptr, fext, gravity);
-  std::unique_ptr<WorkspaceBuffer> own;
-  if (!ws) own.reset(new WorkspaceBuffer(m)), ws = &own->get();
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   const int nv = m.nv;
   std::vector<double> dq(nv * nv), dv(nv * nv);
   for (long s = 0; s < B; ++s) {
-    rnea_derivatives(mv, *ws, q + s * m.nq, qd + s * nv, qdd ? qdd + s * nv : nullptr,
+    rnea_derivatives(mv, buf.get(), q + s * m.nq, qd + s * nv, qdd ? qdd + s * nv : nullptr,
                      fext ? fext + s * m.nb() * 6 : nullptr, gravity, dq.data(), dv.data());
     double* o = out + s * nv * 2 * nv;
     for (int r = 0; r < nv; ++r)
@@ -77,14 +76,13 @@ void forward_dynamics_gradient(const Model& m, long B, const double* q, const do
                                const double* fext, double gravity, double* dqdd_dq, double* dqdd_dqd, double* qdd,
                                Workspace<double>* ws) {
   check_inputs(m, B, q, qd, nullptr, tau, fext, gravity, "u");
-  std::unique_ptr<WorkspaceBuffer> own;
-  if (!ws) own.reset(new WorkspaceBuffer(m)), ws = &own->get();
+  ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   const int nv = m.nv;
   std::vector<double> acc(nv);
   for (long s = 0; s < B; ++s) {
     double* a = qdd ? qdd + s * nv : acc.data();
-    if (!aba_derivatives(mv, *ws, q + s * m.nq, qd + s * nv, tau + s * nv, fext ? fext + s * m.nb() * 6 : nullptr,
+    if (!aba_derivatives(mv, buf.get(), q + s * m.nq, qd + s * nv, tau + s * nv, fext ? fext + s * m.nb() * 6 : nullptr,
                          gravity, a, dqdd_dq + s * nv * nv, dqdd_dqd + s * nv * nv))
       not_pd("forward_dynamics_gradient", s);
   }

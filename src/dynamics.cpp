@@ -11,15 +11,6 @@
 
 namespace rbd {
 
-WorkspaceBuffer::WorkspaceBuffer(const Model& m) {
-  const unsigned long bytes = workspace_bytes<double>(m.nb(), m.nv);
-  storage_.assign(bytes / sizeof(double) + 2, 0.0);  // doubles: 8-byte aligned; 16 below
-  void* p = storage_.data();
-  const auto addr = reinterpret_cast<std::uintptr_t>(p);
-  if (addr % 16) p = static_cast<void*>(reinterpret_cast<unsigned char*>(p) + 8);
-  ws_ = carve_workspace<double>(p, m.nb(), m.nv);
-}
-
 namespace {
 
 std::string sample_label(const char* arg, long sample) {
@@ -64,28 +55,17 @@ void check_configuration(const Model& m, const double* q, const char* arg, long 
   }
 }
 
+void check_configurations(const Model& m, long B, const double* q, const char* arg) {
+  for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, arg, B > 1 ? s : -1);
+}
+
 namespace batch {
 
 namespace {
-// the caller's workspace, or one of our own
-class ScopedWorkspace {
- public:
-  ScopedWorkspace(const Model& m, Workspace<double>* given) : w_(given) {
-    if (!w_) {
-      own_.reset(new WorkspaceBuffer(m));
-      w_ = &own_->get();
-    }
-  }
-  Workspace<double>& get() { return *w_; }
-
- private:
-  std::unique_ptr<WorkspaceBuffer> own_;
-  Workspace<double>* w_;
-};
 
 // checks shared by the dynamics entry points
 void check_state(const Model& m, long B, const double* q, const double* qd, const char* qd_name) {
-  for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, "q", B > 1 ? s : -1);
+  check_configurations(m, B, q, "q");
   if (qd) check_finite(qd, B * m.nv, qd_name);
 }
 }  // namespace
@@ -193,14 +173,7 @@ void d2integrate(const Model& m, long B, const double* q, const double* v, int a
   using D = Dual<double>;
   const int nq = m.nq, nv = m.nv;
   // the model in dual numbers (constants: zero derivative parts)
-  std::vector<BodyDesc<D>> bodies(m.bodies.size());
-  for (size_t i = 0; i < bodies.size(); ++i) {
-    const BodyDesc<double>& b = m.bodies[i];
-    BodyDesc<D>& d = bodies[i];
-    d.parent = b.parent; d.type = b.type; d.q_idx = b.q_idx; d.v_idx = b.v_idx; d.nq = b.nq; d.nv = b.nv;
-    d.nv_subtree = b.nv_subtree; d.mimic = b.mimic; d.mult = b.mult; d.offset = b.offset; d.pitch = b.pitch;
-    d.axis = {b.axis.x, b.axis.y, b.axis.z};
-  }
+  const std::vector<BodyDesc<D>> bodies = m.bodies_as<D>();
   const ModelView<D> mv = {m.nb(), nq, nv, m.has_mimic() ? 1 : 0, bodies.data()};
   std::vector<D> qd(nq), vd(nv), delta(nv), qp(nq), J(nv * nv);
   for (long s = 0; s < B; ++s) {

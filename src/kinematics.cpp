@@ -65,25 +65,6 @@ namespace batch {
 
 namespace {
 
-// the caller's workspace, or one of our own
-class ScopedWorkspace {
- public:
-  ScopedWorkspace(const Model& m, Workspace<double>* given) : w_(given) {
-    if (!w_) {
-      own_.reset(new WorkspaceBuffer(m));
-      w_ = &own_->get();
-    }
-  }
-  Workspace<double>& get() { return *w_; }
-
- private:
-  std::unique_ptr<WorkspaceBuffer> own_;
-  Workspace<double>* w_;
-};
-
-void check_q(const Model& m, long B, const double* q) {
-  for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, "q", B > 1 ? s : -1);
-}
 
 void check_frame(const Model& m, int frame) {
   if (frame < 0 || frame >= static_cast<int>(m.frames.size())) {
@@ -129,7 +110,7 @@ void store_point(const Vec3<double>& p, double* out) {
 }  // namespace
 
 void forward_kinematics(const Model& m, long B, const double* q, double* R, double* p, Workspace<double>* ws) {
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -146,7 +127,7 @@ void forward_kinematics(const Model& m, long B, const double* q, double* R, doub
 void frame_placement(const Model& m, long B, const double* q, int frame, double* R, double* p,
                      Workspace<double>* ws) {
   check_frame(m, frame);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -162,7 +143,7 @@ void frame_placement(const Model& m, long B, const double* q, int frame, double*
 void frame_jacobian(const Model& m, long B, const double* q, int frame, int rf, double* J, Workspace<double>* ws) {
   check_frame(m, frame);
   check_rf(rf);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -177,7 +158,7 @@ void frame_jacobian_dot(const Model& m, long B, const double* q, const double* q
                         Workspace<double>* ws) {
   check_frame(m, frame);
   check_rf(rf);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   check_finite(qd, B * m.nv, "qd");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
@@ -192,7 +173,7 @@ void frame_jacobian_dot(const Model& m, long B, const double* q, const double* q
 void end_effector_pose(const Model& m, long B, const double* q, const EndEffectors& ee, double* pose,
                        Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -207,7 +188,7 @@ void end_effector_pose(const Model& m, long B, const double* q, const EndEffecto
 void end_effector_pose_gradient(const Model& m, long B, const double* q, const EndEffectors& ee, double* G,
                                 Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -222,7 +203,7 @@ void end_effector_pose_gradient(const Model& m, long B, const double* q, const E
 void end_effector_pose_hessian_analytic(const Model& m, long B, const double* q, const EndEffectors& ee, double* H,
                                         Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
@@ -237,29 +218,15 @@ void end_effector_pose_hessian_analytic(const Model& m, long B, const double* q,
 
 void end_effector_pose_hessian(const Model& m, long B, const double* q, const EndEffectors& ee, double* H) {
   check_end_effectors(m, B, ee);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   using D = Dual<double>;
   const int nq = m.nq, nv = m.nv, nb = m.nb();
   const long n = ee.size();
-  // the model in dual numbers (constants: zero derivative parts)
-  std::vector<BodyDesc<D>> bodies(m.bodies.size());
-  for (size_t i = 0; i < bodies.size(); ++i) {
-    const BodyDesc<double>& b = m.bodies[i];
-    BodyDesc<D>& d = bodies[i];
-    d.parent = b.parent; d.type = b.type; d.q_idx = b.q_idx; d.v_idx = b.v_idx; d.nq = b.nq; d.nv = b.nv;
-    d.nv_subtree = b.nv_subtree; d.mimic = b.mimic; d.mult = b.mult; d.offset = b.offset; d.pitch = b.pitch;
-    d.axis = {b.axis.x, b.axis.y, b.axis.z};
-    for (int k = 0; k < 9; ++k) d.X_tree.R.m[k] = b.X_tree.R.m[k];
-    d.X_tree.p = {b.X_tree.p.x, b.X_tree.p.y, b.X_tree.p.z};
-    d.I = Inertia<D>::zero();  // kinematics only
-  }
+  // the model and a workspace in dual numbers (constants: zero derivative parts)
+  const std::vector<BodyDesc<D>> bodies = m.bodies_as<D>();
   const ModelView<D> mv = {nb, nq, nv, m.has_mimic() ? 1 : 0, bodies.data()};
-  // a dual workspace, 16-byte aligned
-  std::vector<unsigned char> storage(workspace_bytes<D>(nb, nv) + 16);
-  void* p = storage.data();
-  const auto addr = reinterpret_cast<std::uintptr_t>(p);
-  if (addr % 16) p = static_cast<void*>(storage.data() + (16 - addr % 16));
-  Workspace<D> w = carve_workspace<D>(p, nb, nv);
+  WorkspaceBufferT<D> wbuf(m);
+  Workspace<D>& w = wbuf.get();
   std::vector<D> qs(nq), delta(nv), qp(nq), G(6 * nv);
   for (long s = 0; s < B; ++s) {
     for (int i = 0; i < nq; ++i) qs[i] = D(q[s * nq + i]);
@@ -281,7 +248,7 @@ void end_effector_pose_hessian(const Model& m, long B, const double* q, const En
 void osc_inertia(const Model& m, long B, const double* q, const EndEffectors& ee, double* Lambda,
                  Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
-  check_q(m, B, q);
+  check_configurations(m, B, q, "q");
   ScopedWorkspace buf(m, ws);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();

@@ -10,6 +10,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,15 +25,37 @@
 
 namespace rbd {
 
-// a workspace with its own storage (one per thread)
-class WorkspaceBuffer {
+// a workspace in scalar S with its own storage (one per thread), 16-byte aligned
+template <typename S> class WorkspaceBufferT {
  public:
-  explicit WorkspaceBuffer(const Model& m);
-  Workspace<double>& get() { return ws_; }
+  explicit WorkspaceBufferT(const Model& m) : storage_(workspace_bytes<S>(m.nb(), m.nv) + 16) {
+    unsigned char* p = storage_.data();
+    const auto addr = reinterpret_cast<std::uintptr_t>(p);
+    if (addr % 16) p += 16 - addr % 16;
+    ws_ = carve_workspace<S>(p, m.nb(), m.nv);
+  }
+  Workspace<S>& get() { return ws_; }
 
  private:
-  std::vector<double> storage_;
-  Workspace<double> ws_;
+  std::vector<unsigned char> storage_;
+  Workspace<S> ws_;
+};
+using WorkspaceBuffer = WorkspaceBufferT<double>;
+
+// the caller's workspace, or one of our own for the duration of a call
+class ScopedWorkspace {
+ public:
+  ScopedWorkspace(const Model& m, Workspace<double>* given) : w_(given) {
+    if (!w_) {
+      own_.reset(new WorkspaceBuffer(m));
+      w_ = &own_->get();
+    }
+  }
+  Workspace<double>& get() { return *w_; }
+
+ private:
+  std::unique_ptr<WorkspaceBuffer> own_;
+  Workspace<double>* w_;
 };
 
 // ---- input checks (throw std::invalid_argument)
@@ -39,6 +63,8 @@ void check_finite(const double* x, long n, const char* arg);
 // finite values and a unit quaternion (|‖quat‖ - 1| <= 1e-6) for every
 // free-flyer and spherical joint; `sample` only labels the message (-1: none)
 void check_configuration(const Model& m, const double* q, const char* arg, long sample = -1);
+// the same for B stacked configurations (B x nq)
+void check_configurations(const Model& m, long B, const double* q, const char* arg);
 
 // The dynamics functions take an optional workspace (made with
 // WorkspaceBuffer for the same model); without one they allocate their own
