@@ -1,0 +1,325 @@
+// bench/bench_dynamics.cpp — rbdkit against Pinocchio's C++ library, in one
+// run on one machine (Google Benchmark).
+//
+// Every benchmark is named  <library>/<operation>/<robot>  (library: rbdkit
+// or pinocchio); bench/report.py pairs them into a ratio table. Both sides
+// time one call on one thread at one random valid state, with preallocated
+// storage: rbdkit's per-sample templates on a WorkspaceBuffer, Pinocchio's
+// algorithms on a pinocchio::Data made once per robot.
+//
+// Before timing, the program checks that both libraries compute the same
+// outputs at that state (max |difference| printed on stderr; exit 1 when a
+// fixed-base robot differs by more than 1e-8), so the times compare equal work.
+//
+// Adding an operation: one entry in operations() below — a name, the rbdkit
+// call, the Pinocchio call and (optionally) how to compare their outputs.
+// An entry whose rbdkit side is empty is timed for Pinocchio alone.
+//
+// Arguments: Google Benchmark's (--benchmark_filter, --benchmark_repetitions,
+// --benchmark_out=FILE --benchmark_out_format=json, ...) and
+//   --robots_dir=DIR   the URDF folder (default: rbdkit's robots/)
+//   --check_only       run the agreement check and exit
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <rbdkit/dynamics.hpp>
+
+#include <pinocchio/algorithm/aba-derivatives.hpp>
+#include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/multibody/data.hpp>
+#include <pinocchio/multibody/model.hpp>
+#include <pinocchio/parsers/urdf.hpp>
+
+#ifndef RBDKIT_ROBOTS_DIR
+#define RBDKIT_ROBOTS_DIR "robots"
+#endif
+
+namespace {
+
+constexpr double kGravity = -9.81;  // world z; Pinocchio's default model.gravity is (0, 0, -9.81)
+constexpr double kTolerance = 1e-8;
+
+using Vec = Eigen::VectorXd;
+
+// Pinocchio's arguments go in as Eigen::Ref<const VectorXd>: the type its
+// shared library is explicitly instantiated for (PINOCCHIO_ENABLE_TEMPLATE_
+// INSTANTIATION declares those instantiations extern), so every Pinocchio
+// algorithm timed here is the code compiled into libpinocchio_default.so.
+// A plain VectorXd would instantiate some algorithms (aba, crba, minv) in
+// this file instead and others (rnea) not. With RBDKIT_BENCH_PINOCCHIO_INLINE
+// (CMake option; undefines PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION) all of
+// them are compiled here, by this compiler with these flags, like rbdkit.
+using PinIn = Eigen::Ref<const Vec>;
+inline PinIn pin(const Vec& x) { return PinIn(x); }
+
+// One robot: both libraries' models of the same URDF, one random state,
+// preallocated workspaces and outputs.
+struct Robot {
+  std::string name;  // iiwa, hyq, atlas, hyq_floating, atlas_floating
+  bool floating = false;
+
+  rbd::Model model;
+  std::unique_ptr<rbd::WorkspaceBuffer> buf;
+  rbd::ModelView<double> mv{};
+  rbd::Workspace<double>* w = nullptr;
+  std::vector<double> out;  // nv x nv, rbdkit's output of every operation
+
+  pinocchio::Model pmodel;
+  std::unique_ptr<pinocchio::Data> pdata;
+
+  Vec q, qd, qdd, tau;  // the state both libraries see
+
+  int nv() const { return model.nv; }
+};
+
+// ---- operations
+//
+// rbdkit: one call writing into r.out (r.w, r.mv prepared).
+// pinocchio: one call writing into *r.pdata.
+// compare (optional): max |rbdkit - Pinocchio| over the outputs both compute,
+// called right after running both sides once at r's state.
+struct Operation {
+  std::string name;
+  std::string note;            // what is computed, printed before the check
+  void (*rbdkit)(Robot&);      // nullptr: Pinocchio alone
+  void (*pinocchio)(Robot&);
+  double (*compare)(Robot&);   // nullptr: not checked
+};
+
+double max_abs_diff(const double* a, const double* b, long n) {
+  double d = 0;
+  for (long k = 0; k < n; ++k) d = std::max(d, std::abs(a[k] - b[k]));
+  return d;
+}
+
+// upper triangles (diagonal included) of rbdkit's row-major nv x nv output
+// and a Pinocchio matrix
+template <typename M> double max_abs_diff_upper(const Robot& r, const M& P) {
+  const int n = r.nv();
+  double d = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = i; j < n; ++j) d = std::max(d, std::abs(r.out[i * n + j] - P(i, j)));
+  return d;
+}
+
+std::vector<Operation> operations() {
+  std::vector<Operation> ops;
+
+  ops.push_back({"rnea", "inverse dynamics tau(q, qd, qdd)",
+                 [](Robot& r) {
+                   rbd::rnea(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), static_cast<const double*>(nullptr),
+                             kGravity, r.out.data());
+                 },
+                 [](Robot& r) { pinocchio::rnea(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.qdd)); },
+                 [](Robot& r) { return max_abs_diff(r.out.data(), r.pdata->tau.data(), r.nv()); }});
+
+  // rbdkit writes the full symmetric M, Pinocchio the upper triangle only
+  ops.push_back({"crba", "mass matrix M(q) (rbdkit: full matrix; Pinocchio: upper triangle)",
+                 [](Robot& r) { rbd::crba(r.mv, *r.w, r.q.data(), r.out.data()); },
+                 [](Robot& r) { pinocchio::crba(r.pmodel, *r.pdata, pin(r.q)); },
+                 [](Robot& r) { return max_abs_diff_upper(r, r.pdata->M); }});
+
+  // both write the upper triangle only (rbdkit: dense=false zeroes the strict lower one)
+  ops.push_back({"minv", "inverse mass matrix M(q)^-1 (both: upper triangle)",
+                 [](Robot& r) { rbd::minv(r.mv, *r.w, r.q.data(), false, r.out.data()); },
+                 [](Robot& r) { pinocchio::computeMinverse(r.pmodel, *r.pdata, pin(r.q)); },
+                 [](Robot& r) { return max_abs_diff_upper(r, r.pdata->Minv); }});
+
+  ops.push_back({"aba", "forward dynamics qdd(q, qd, tau), articulated-body algorithm",
+                 [](Robot& r) {
+                   rbd::aba(r.mv, *r.w, r.q.data(), r.qd.data(), r.tau.data(), static_cast<const double*>(nullptr),
+                            kGravity, r.out.data());
+                 },
+                 [](Robot& r) { pinocchio::aba(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.tau)); },
+                 [](Robot& r) { return max_abs_diff(r.out.data(), r.pdata->ddq.data(), r.nv()); }});
+
+  // ---- gradients: Pinocchio only until rbdkit has them. To time rbdkit too,
+  // fill the rbdkit member, e.g. (signature to be fixed by the implementation)
+  //   [](Robot& r) { rbd::rnea_derivatives(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), ...,
+  //                                        kGravity, dtau_dq, dtau_dv); },
+  // and a compare against r.pdata->dtau_dq / dtau_dv (ddq_dq / ddq_dv for ABA;
+  // Pinocchio fills only the upper triangle of the M / Minv it also returns).
+  ops.push_back({"rnea_derivatives", "d tau / d(q, qd) (Pinocchio: computeRNEADerivatives)",
+                 nullptr,
+                 [](Robot& r) { pinocchio::computeRNEADerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.qdd)); },
+                 nullptr});
+  ops.push_back({"aba_derivatives", "d qdd / d(q, qd, tau) (Pinocchio: computeABADerivatives)",
+                 nullptr,
+                 [](Robot& r) { pinocchio::computeABADerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.tau)); },
+                 nullptr});
+  return ops;
+}
+
+// ---- robots
+
+std::unique_ptr<Robot> load_robot(const std::string& dir, const std::string& urdf, bool floating, unsigned seed) {
+  auto r = std::make_unique<Robot>();
+  r->name = urdf + (floating ? "_floating" : "");
+  r->floating = floating;
+  const std::string path = dir + "/" + urdf + ".urdf";
+
+  r->model = rbd::Model::from_urdf_file(path, floating);
+  r->buf = std::make_unique<rbd::WorkspaceBuffer>(r->model);
+  r->w = &r->buf->get();
+  r->mv = r->model.view();
+  r->out.assign(static_cast<size_t>(r->model.nv) * r->model.nv, 0.0);
+
+  if (floating)
+    pinocchio::urdf::buildModel(path, pinocchio::JointModelFreeFlyer(), r->pmodel);
+  else
+    pinocchio::urdf::buildModel(path, r->pmodel);
+  r->pdata = std::make_unique<pinocchio::Data>(r->pmodel);
+
+  // the two models must share their coordinates (true for the bundled robots)
+  const std::vector<std::string> names = r->model.joint_names();
+  bool same = r->model.nq == r->pmodel.nq && r->model.nv == r->pmodel.nv &&
+              static_cast<int>(names.size()) == static_cast<int>(r->pmodel.njoints) - 1;
+  for (size_t k = 0; same && k < names.size(); ++k) {
+    const auto& jm = r->pmodel.joints[k + 1];
+    const rbd::JointInfo& ji = r->model.joints[r->model.joint_index(names[k])];
+    same = names[k] == r->pmodel.names[k + 1] && ji.q_idx == jm.idx_q() && ji.v_idx == jm.idx_v();
+  }
+  if (!same) {
+    std::fprintf(stderr, "bench: %s: rbdkit and Pinocchio order the joints differently; not comparable\n",
+                 r->name.c_str());
+    std::exit(1);
+  }
+
+  // random valid state: q = integrate(neutral, v) (unit quaternion for the
+  // free flyer), qd, qdd, tau uniform in [-1, 1]
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  auto rand_vec = [&](int n) {
+    Vec x(n);
+    for (int k = 0; k < n; ++k) x[k] = U(gen);
+    return x;
+  };
+  const int nq = r->model.nq, nv = r->model.nv;
+  const std::vector<double> q0 = r->model.neutral();
+  const Vec dq = rand_vec(nv);
+  r->q.resize(nq);
+  rbd::integrate(r->mv, q0.data(), dq.data(), r->q.data());
+  r->qd = rand_vec(nv);
+  r->qdd = rand_vec(nv);
+  r->tau = rand_vec(nv);
+  return r;
+}
+
+// ---- the agreement check; false when a fixed-base robot is off
+bool check_agreement(std::vector<std::unique_ptr<Robot>>& robots, const std::vector<Operation>& ops) {
+  bool ok = true;
+  std::fprintf(stderr, "operations:\n");
+  for (const Operation& op : ops)
+    std::fprintf(stderr, "  %-17s %s%s\n", op.name.c_str(), op.note.c_str(), op.rbdkit ? "" : " [Pinocchio alone]");
+  std::fprintf(stderr, "agreement check at the benchmarked state, max |rbdkit - Pinocchio| (tolerance %.0e%s):\n",
+               kTolerance, ", enforced for fixed-base robots");
+  for (auto& rp : robots) {
+    Robot& r = *rp;
+    std::fprintf(stderr, "  %-16s", r.name.c_str());
+    for (const Operation& op : ops) {
+      if (!op.rbdkit || !op.pinocchio || !op.compare) continue;
+      op.rbdkit(r);
+      op.pinocchio(r);
+      const double d = op.compare(r);
+      const bool bad = !(d <= kTolerance);
+      if (bad && !r.floating) ok = false;
+      std::fprintf(stderr, " %s %.1e%s", op.name.c_str(), d, bad ? (r.floating ? " (!)" : " FAIL") : "");
+    }
+    std::fprintf(stderr, "\n");
+  }
+  return ok;
+}
+
+// ---- Google Benchmark glue: the same loop for both libraries, one call
+// through a function pointer per iteration (a predicted indirect call, about
+// a nanosecond, on both sides; Pinocchio's own call also goes through the
+// shared library's PLT)
+void timed_loop(benchmark::State& st, Robot& r, void (*call)(Robot&), const void* out) {
+  for (auto _ : st) {
+    call(r);
+    benchmark::DoNotOptimize(out);
+    benchmark::ClobberMemory();
+  }
+  st.counters["nv"] = r.nv();
+}
+
+void register_benchmarks(std::vector<std::unique_ptr<Robot>>& robots, const std::vector<Operation>& ops) {
+  auto add = [](const std::string& name, std::function<void(benchmark::State&)> fn) {
+    benchmark::RegisterBenchmark(name.c_str(), fn)
+        ->ComputeStatistics("min", [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); })
+        ->Unit(benchmark::kNanosecond);
+  };
+  for (const Operation& op : ops) {
+    for (auto& rp : robots) {
+      Robot* r = rp.get();
+      // the two sides of one (operation, robot) are registered next to each other
+      if (op.rbdkit) {
+        auto call = op.rbdkit;
+        add("rbdkit/" + op.name + "/" + r->name,
+            [r, call](benchmark::State& st) { timed_loop(st, *r, call, r->out.data()); });
+      }
+      if (op.pinocchio) {
+        auto call = op.pinocchio;
+        add("pinocchio/" + op.name + "/" + r->name,
+            [r, call](benchmark::State& st) { timed_loop(st, *r, call, r->pdata.get()); });
+      }
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string dir = RBDKIT_ROBOTS_DIR;
+  bool check_only = false;
+  // our own flags first, the rest to Google Benchmark
+  std::vector<char*> rest{argv[0]};
+  for (int i = 1; i < argc; ++i) {
+    if (std::strncmp(argv[i], "--robots_dir=", 13) == 0)
+      dir = argv[i] + 13;
+    else if (std::strcmp(argv[i], "--check_only") == 0)
+      check_only = true;
+    else
+      rest.push_back(argv[i]);
+  }
+  int n = static_cast<int>(rest.size());
+  benchmark::Initialize(&n, rest.data());
+  if (benchmark::ReportUnrecognizedArguments(n, rest.data())) return 2;
+
+  const std::vector<Operation> ops = operations();
+  std::vector<std::unique_ptr<Robot>> robots;
+  try {
+    unsigned seed = 1;
+    for (const char* urdf : {"iiwa", "hyq", "atlas"}) robots.push_back(load_robot(dir, urdf, false, seed++));
+    for (const char* urdf : {"hyq", "atlas"}) robots.push_back(load_robot(dir, urdf, true, seed++));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench: loading the robots from %s: %s\n", dir.c_str(), e.what());
+    return 1;
+  }
+
+  if (!check_agreement(robots, ops)) {
+    std::fprintf(stderr, "bench: rbdkit and Pinocchio disagree beyond %.0e; not timing\n", kTolerance);
+    return 1;
+  }
+  if (check_only) return 0;
+
+  register_benchmarks(robots, ops);
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
