@@ -183,13 +183,26 @@ template <typename S> struct Inertia {
 };
 
 // inertia of frame b re-expressed in frame a (X = X_a_b):  X* I X^-1
+//   m' = m, h' = R h + m p,
+//   I' = R I Rᵀ - ([h][p] + [p][h] + m [p]²)        (h = R h_b, about the new origin)
+//      = R I Rᵀ - (p hᵀ + h pᵀ + m p pᵀ) + (2 h·p + m p·p) 1
+// only the 6 independent entries of the symmetric results are computed
 template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
-  const Vec3<S> h = X.R * Ib.h;
-  const Mat3<S> Ir = X.R * Ib.I * transpose(X.R);
-  const Mat3<S> P = skew(X.p), H = skew(h);
-  // I_o about the new origin: R I R^T - ([h][p] + [p][h] + m [p]^2)
-  const Mat3<S> corr = H * P + P * H + Ib.m * (P * P);
-  return {Ib.m, h + Ib.m * X.p, Ir - corr};
+  const Mat3<S>& R = X.R;
+  const Vec3<S>& p = X.p;
+  const Vec3<S> h = R * Ib.h;
+  const Mat3<S> RI = R * Ib.I;
+  const S m = Ib.m;
+  const S diag = S(2) * dot(h, p) + m * dot(p, p);
+  Mat3<S> I;
+  for (int r = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c) {
+      const S rot = RI(r, 0) * R(c, 0) + RI(r, 1) * R(c, 1) + RI(r, 2) * R(c, 2);
+      const S v = rot - (p[r] * h[c] + h[r] * p[c] + m * p[r] * p[c]) + (r == c ? diag : S(0));
+      I(r, c) = v;
+      I(c, r) = v;
+    }
+  return {m, h + m * p, I};
 }
 
 // ------------------------------------------------------------------- Mat6

@@ -11,15 +11,15 @@ namespace rbd {
 
 template <typename S> struct Workspace {
   Transform<S>* X;   // (nb)        X_parent_body at q            — every forward pass
-  Transform<S>* Xw;  // (nb)        X_world_body at q             — minv
+  Transform<S>* Xw;  // (nb)        X_world_body at q             — crba, minv, derivatives, kinematics
   Motion<S>* v;      // (nb)        body velocity, body frame     — rnea, aba
   Motion<S>* a;      // (nb)        body acceleration incl. -g    — rnea, aba
   Force<S>* f;       // (nb)        rnea: joint force (subtree), aba: bias force pA
   Motion<S>* c;      // (nb)        aba: velocity-product acceleration v × vJ
   Mat6<S>* IA;       // (nb)        aba, minv: articulated inertia
-  Inertia<S>* Ic;    // (nb)        crba: composite rigid-body inertia
+  Inertia<S>* Ic;    // (nb)        crba: composite rigid-body inertia (world frame)
   Force<S>* U;       // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
-  Motion<S>* Sw;     // (nb x 6)    minv: motion subspace columns in the world frame
+  Motion<S>* Sw;     // (nb x 6)    crba, minv, derivatives: motion subspace columns, world frame
   S* Dinv;           // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
   Motion<S>* dVdq;   // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (world frame)
   Motion<S>* dAdq;   // (nb x 6)    rnea_derivatives: a_λ × s + v_λ × dVdq

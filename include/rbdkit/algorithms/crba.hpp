@@ -1,6 +1,7 @@
 // rbdkit/algorithms/crba.hpp — joint-space mass matrix by the composite
 // rigid-body algorithm (Featherstone, RBDA §6.2, table 6.2).
 //
+//
 // Mimic joints: a mimic body contributes mult·S to its target's column, so
 // M accumulates every body pair's term into the (shared) columns; the
 // result is Gᵀ M_full G for the reduced-coordinate map G.
@@ -10,46 +11,45 @@
 
 namespace rbd {
 
-// forward pass: body transforms and composite inertias initialised
+// Everything in world coordinates: each body inertia is moved to the world
+// once, composites add without transforms, and M_ji = s_j · (Ic_i s_i) is a
+// dot product per ancestor (no force is carried up the chain).
+
+// forward pass: world placements, subspace columns, world body inertias
+//   writes w.X, w.Xw, w.Sw, w.Ic
 template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   for (int i = 0; i < m.nb; ++i) {
-    w.X[i] = body_transform(m.body[i], q);
-    w.Ic[i] = m.body[i].I;
+    const BodyDesc<S>& b = m.body[i];
+    w.X[i] = body_transform(b, q);
+    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    for (int k = 0; k < b.nv; ++k) w.Sw[6 * i + k] = w.Xw[i].act(joint_subspace_col(b, k));
+    w.Ic[i] = transform_inertia(w.Xw[i], b.I);
   }
 }
 
-// backward pass: F = Ic_i S_i carried up the support chain, M (nv x nv, row-major)
+// backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors,
+// Ic_λ += Ic_i. writes M (nv x nv, row-major), w.Ic (subtree sums)
 template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
   const int nv = m.nv;
   for (int k = 0; k < nv * nv; ++k) M[k] = S(0);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
-    // F_k = Ic_i S_k for each DoF k of joint i
     Force<S> F[6];
-    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * joint_subspace_col(bi, k);
-    // diagonal block: M_ii = S_iᵀ F
-    for (int k = 0; k < bi.nv; ++k) {
-      S col[6];
-      joint_project(bi, F[k], col);
-      for (int l = 0; l < bi.nv; ++l) M[(bi.v_idx + l) * nv + bi.v_idx + k] += col[l];
-    }
-    // off-diagonal blocks: walk to the root, M_ji = S_jᵀ X F (and its transpose)
-    int j = i;
-    while (m.body[j].parent >= 0) {
-      for (int k = 0; k < bi.nv; ++k) F[k] = w.X[j].act(F[k]);
-      j = m.body[j].parent;
+    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * w.Sw[6 * i + k];
+    // diagonal block
+    for (int k = 0; k < bi.nv; ++k)
+      for (int l = 0; l < bi.nv; ++l) M[(bi.v_idx + l) * nv + bi.v_idx + k] += dot(w.Sw[6 * i + l], F[k]);
+    // off-diagonal blocks with every ancestor (and their transposes)
+    for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
       const BodyDesc<S>& bj = m.body[j];
-      for (int k = 0; k < bi.nv; ++k) {
-        S col[6];
-        joint_project(bj, F[k], col);
+      for (int k = 0; k < bi.nv; ++k)
         for (int l = 0; l < bj.nv; ++l) {
-          M[(bj.v_idx + l) * nv + bi.v_idx + k] += col[l];
-          M[(bi.v_idx + k) * nv + bj.v_idx + l] += col[l];
+          const S x = dot(w.Sw[6 * j + l], F[k]);
+          M[(bj.v_idx + l) * nv + bi.v_idx + k] += x;
+          M[(bi.v_idx + k) * nv + bj.v_idx + l] += x;
         }
-      }
     }
-    // composite inertia: Ic_λ += X* Ic_i X⁻¹
-    if (bi.parent >= 0) w.Ic[bi.parent] += transform_inertia(w.X[i], w.Ic[i]);
+    if (bi.parent >= 0) w.Ic[bi.parent] += w.Ic[i];
   }
 }
 
