@@ -27,7 +27,7 @@ def states(model, n=3, seed=0):
                rng.uniform(-5, 5, (model.nb, 6)))
 
 
-def fd_tangent(rbd, f, q, eps=1e-6):
+def fd_tangent(rbd, f, q, eps=1e-5):
     """central differences of f along q <- integrate(q, ±eps e_k): (out..., nv)"""
     cols = []
     for k in range(rbd.nv):
@@ -75,7 +75,7 @@ def test_gradients_by_finite_differences(ref):
     rbd = rbdkit.RBD(ref.model)
     nv = ref.model.nv
     # a moderate-velocity state; qd steps of 1e-4 are exact up to rounding (ID
-    # and FD are quadratic in qd), tangent steps of 1e-6 balance truncation and rounding
+    # and FD are quadratic in qd), tangent steps of 1e-5 balance truncation and rounding
     q, qd, qdd, tau, fext = next(states(ref.model, 2, seed=4))
     D = rbd.inverse_dynamics_gradient(q, qd, qdd, f_ext=fext)
     tau_of = lambda qq: rbd.inverse_dynamics(qq, qd, qdd, f_ext=fext)[0]
