@@ -33,6 +33,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <rbdkit/algorithms/aba_derivatives.hpp>
 #include <rbdkit/dynamics.hpp>
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
@@ -77,7 +78,9 @@ struct Robot {
   std::unique_ptr<rbd::WorkspaceBuffer> buf;
   rbd::ModelView<double> mv{};
   rbd::Workspace<double>* w = nullptr;
-  std::vector<double> out;  // nv x nv, rbdkit's output of every operation
+  std::vector<double> out;   // nv x nv, rbdkit's output of every operation
+  std::vector<double> out2;  // nv x nv, the second matrix of the derivatives
+  std::vector<double> acc;   // nv, the forward-dynamics acceleration of aba_derivatives
 
   pinocchio::Model pmodel;
   std::unique_ptr<pinocchio::Data> pdata;
@@ -117,6 +120,15 @@ template <typename M> double max_abs_diff_upper(const Robot& r, const M& P) {
   return d;
 }
 
+// rbdkit's row-major nv x nv output against a full Pinocchio matrix
+template <typename M> double max_abs_diff_rowmajor(const std::vector<double>& a, const M& P) {
+  const long n = P.rows();
+  double d = 0;
+  for (long i = 0; i < n; ++i)
+    for (long j = 0; j < n; ++j) d = std::max(d, std::abs(a[i * n + j] - P(i, j)));
+  return d;
+}
+
 std::vector<Operation> operations() {
   std::vector<Operation> ops;
 
@@ -148,20 +160,25 @@ std::vector<Operation> operations() {
                  [](Robot& r) { pinocchio::aba(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.tau)); },
                  [](Robot& r) { return max_abs_diff(r.out.data(), r.pdata->ddq.data(), r.nv()); }});
 
-  // ---- gradients: Pinocchio only until rbdkit has them. To time rbdkit too,
-  // fill the rbdkit member, e.g. (signature to be fixed by the implementation)
-  //   [](Robot& r) { rbd::rnea_derivatives(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), ...,
-  //                                        kGravity, dtau_dq, dtau_dv); },
-  // and a compare against r.pdata->dtau_dq / dtau_dv (ddq_dq / ddq_dv for ABA;
-  // Pinocchio fills only the upper triangle of the M / Minv it also returns).
+  // ---- first-order derivatives (both: full matrices; Pinocchio's ABA
+  // derivatives also return M⁻¹ (upper triangle), which rbdkit computes inside)
   ops.push_back({"rnea_derivatives", "d tau / d(q, qd) (Pinocchio: computeRNEADerivatives)",
-                 nullptr,
+                 [](Robot& r) {
+                   rbd::rnea_derivatives(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(),
+                                         static_cast<const double*>(nullptr), kGravity, r.out.data(), r.out2.data());
+                 },
                  [](Robot& r) { pinocchio::computeRNEADerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.qdd)); },
-                 nullptr});
-  ops.push_back({"aba_derivatives", "d qdd / d(q, qd, tau) (Pinocchio: computeABADerivatives)",
-                 nullptr,
+                 [](Robot& r) { return std::max(max_abs_diff_rowmajor(r.out, r.pdata->dtau_dq),
+                                                max_abs_diff_rowmajor(r.out2, r.pdata->dtau_dv)); }});
+  ops.push_back({"aba_derivatives", "d qdd / d(q, qd) (Pinocchio: computeABADerivatives)",
+                 [](Robot& r) {
+                   rbd::aba_derivatives(r.mv, *r.w, r.q.data(), r.qd.data(), r.tau.data(),
+                                        static_cast<const double*>(nullptr), kGravity, r.acc.data(), r.out.data(),
+                                        r.out2.data());
+                 },
                  [](Robot& r) { pinocchio::computeABADerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.tau)); },
-                 nullptr});
+                 [](Robot& r) { return std::max(max_abs_diff_rowmajor(r.out, r.pdata->ddq_dq),
+                                                max_abs_diff_rowmajor(r.out2, r.pdata->ddq_dv)); }});
   return ops;
 }
 
@@ -178,6 +195,8 @@ std::unique_ptr<Robot> load_robot(const std::string& dir, const std::string& urd
   r->w = &r->buf->get();
   r->mv = r->model.view();
   r->out.assign(static_cast<size_t>(r->model.nv) * r->model.nv, 0.0);
+  r->out2.assign(r->out.size(), 0.0);
+  r->acc.assign(r->model.nv, 0.0);
 
   if (floating)
     pinocchio::urdf::buildModel(path, pinocchio::JointModelFreeFlyer(), r->pmodel);

@@ -62,7 +62,7 @@ TEST_P(Derivatives, MatchFiniteDifferences) {
   ASSERT_TRUE(fext_derivatives(mv, w, q.data(), dtau_df.data(), dqdd_df.data()));
 
   // central differences: q along integrate, qd and f_ext directly
-  const double h = 1e-6;
+  const double h = 1e-5;
   std::vector<double> fdDq(nv * nv), fdDv(nv * nv), fdFq(nv * nv), fdFv(nv * nv), qp(nq), t1(nv), t2(nv);
   auto id = [&](const double* qq, const double* vv, const double* ff, double* out) {
     rnea(mv, w, qq, vv, qdd.data(), ff, -9.81, out);
