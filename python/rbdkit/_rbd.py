@@ -11,13 +11,14 @@ import numpy as np
 from . import _core
 from ._checks import Batch, check_choice, check_scalar
 from ._derivatives import DerivativesMixin
+from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
 
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin):
+class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):
