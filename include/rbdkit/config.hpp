@@ -21,11 +21,13 @@ RBD_HD double scos(double x) { return ::cos(x); }
 RBD_HD double ssqrt(double x) { return ::sqrt(x); }
 RBD_HD double satan2(double y, double x) { return ::atan2(y, x); }
 RBD_HD double sabs(double x) { return ::fabs(x); }
+RBD_HD double slog(double x) { return ::log(x); }
 RBD_HD float ssin(float x) { return ::sinf(x); }
 RBD_HD float scos(float x) { return ::cosf(x); }
 RBD_HD float ssqrt(float x) { return ::sqrtf(x); }
 RBD_HD float satan2(float y, float x) { return ::atan2f(y, x); }
 RBD_HD float sabs(float x) { return ::fabsf(x); }
+RBD_HD float slog(float x) { return ::logf(x); }
 
 // value of a scalar for branching (the real part of a dual number)
 RBD_HD double value_of(double x) { return x; }

@@ -10,6 +10,7 @@ import numpy as np
 
 from . import _core
 from ._checks import Batch, check_choice, check_scalar
+from ._costs import CostsMixin
 from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
@@ -18,7 +19,7 @@ from ._kinematics import KinematicsMixin
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin):
+class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

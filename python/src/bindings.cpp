@@ -21,6 +21,7 @@ using namespace nb::literals;
 
 void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 void bind_integrators(nb::module_& m);  // bind_integrators.cpp
+void bind_costs(nb::module_& m);        // bind_costs.cpp
 using rbd::Model;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
@@ -68,6 +69,7 @@ NB_MODULE(_core, m) {
   m.doc() = "rbdkit compiled core";
   bind_derivatives(m);
   bind_integrators(m);
+  bind_costs(m);
 
   nb::class_<Model>(m, "Model")
       .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false)

@@ -1,0 +1,24 @@
+// rbdkit/costs_api.hpp — host entry points of the plant layer's costs and
+// barriers (batched, checked). Layouts in algorithms/costs.hpp. Host only.
+#pragma once
+
+#include "algorithms/costs.hpp"
+#include "kinematics_api.hpp"
+
+namespace rbd {
+namespace batch {
+// ½ Σ W (x - x_des)² over width n: value (B), grad (B x n), H (B x n x n); names label errors
+void quadratic_cost(long B, int n, const double* x, const double* x_des, const double* W, double* value,
+                    double* grad, double* H, const char* x_name, const char* des_name, const char* w_name);
+// the log-map state cost: x, x_des (B x NX), Q (B x 2nv) -> value (B), grad (B x 2nv), H (B x 2nv x 2nv)
+void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const double* x_des, const double* Q,
+                                  double* value, double* grad, double* H);
+// end-effector position tracking of end effector `body` with tool point
+// `offset` (3, body frame): q (B x nq), p_des, W (B x 3) -> value (B), grad (B x NX), H (B x NX x NX)
+void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, int body,
+                 const double* offset, double* value, double* grad, double* H);
+// log barrier over width n: value (B), grad (B x n), Hdiag (B x n)
+void log_barrier(long B, int n, const double* x, const double* lower, const double* upper, double mu,
+                 double* value, double* grad, double* Hdiag, const char* x_name);
+}  // namespace batch
+}  // namespace rbd

@@ -1,0 +1,96 @@
+// Host entry points of the plant layer's costs and barriers.
+#include "rbdkit/costs_api.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace rbd {
+namespace batch {
+
+namespace {
+void check_weights(const double* W, long n, const char* name) {
+  check_finite(W, n, name);
+  for (long k = 0; k < n; ++k)
+    if (W[k] < 0) {
+      std::ostringstream os;
+      os << name << ": expected non-negative weights, got " << W[k] << " at flat index " << k;
+      throw std::invalid_argument(os.str());
+    }
+}
+}  // namespace
+
+void quadratic_cost(long B, int n, const double* x, const double* x_des, const double* W, double* value,
+                    double* grad, double* H, const char* x_name, const char* des_name, const char* w_name) {
+  check_finite(x, B * n, x_name);
+  check_finite(x_des, B * n, des_name);
+  check_weights(W, B * n, w_name);
+  for (long s = 0; s < B; ++s)
+    value[s] = rbd::quadratic_cost(n, x + s * n, x_des + s * n, W + s * n, grad + s * n, H + s * n * n);
+}
+
+void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const double* x_des, const double* Q,
+                                  double* value, double* grad, double* H) {
+  const int nx = m.nq + m.nv, n2 = 2 * m.nv;
+  for (long s = 0; s < B; ++s) {
+    check_configuration(m, x + s * nx, "x", B > 1 ? s : -1);
+    check_configuration(m, x_des + s * nx, "x_des", B > 1 ? s : -1);
+  }
+  check_finite(x, B * nx, "x");
+  check_finite(x_des, B * nx, "x_des");
+  check_weights(Q, B * n2, "Q");
+  const ModelView<double> mv = m.view();
+  std::vector<double> scratch(m.nv * m.nv + m.nv);
+  for (long s = 0; s < B; ++s)
+    value[s] = rbd::quadratic_state_cost_tangent(mv, x + s * nx, x_des + s * nx, Q + s * n2, grad + s * n2,
+                                                 H + s * n2 * n2, scratch.data());
+}
+
+void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, int body,
+                 const double* offset, double* value, double* grad, double* H) {
+  check_configurations(m, B, q, "q");
+  check_finite(p_des, B * 3, "p_des");
+  check_weights(W, B * 3, "W");
+  const int nv = m.nv, nx = m.nq + m.nv;
+  EndEffectors ee;
+  ee.bodies = {body};
+  std::vector<double> off(B * 3, 0.0);
+  if (offset)
+    for (long s = 0; s < B; ++s)
+      for (int k = 0; k < 3; ++k) off[s * 3 + k] = offset[k];
+  ee.offsets = off.data();
+  std::vector<double> pose(B * 6), G(B * 6 * nv);
+  end_effector_pose(m, B, q, ee, pose.data());
+  end_effector_pose_gradient(m, B, q, ee, G.data());
+  for (long s = 0; s < B; ++s) {
+    double r[3];
+    for (int k = 0; k < 3; ++k) r[k] = pose[s * 6 + k] - p_des[s * 3 + k];
+    // the position rows of the pose gradient are the residual's Jacobian
+    value[s] = residual_cost_embedded(3, r, W + s * 3, G.data() + s * 6 * nv, m.nq, nv, grad + s * nx,
+                                      H + s * nx * nx);
+  }
+}
+
+void log_barrier(long B, int n, const double* x, const double* lower, const double* upper, double mu,
+                 double* value, double* grad, double* Hdiag, const char* x_name) {
+  check_finite(x, B * n, x_name);
+  for (long k = 0; k < B * n; ++k) {
+    if (std::isnan(lower[k]) || std::isnan(upper[k]) || lower[k] == INFINITY || upper[k] == -INFINITY ||
+        lower[k] >= upper[k]) {
+      std::ostringstream os;
+      os << "lower, upper: expected lower < upper (infinite bounds allowed: -inf below, +inf above), got "
+         << lower[k] << " and " << upper[k] << " at flat index " << k;
+      throw std::invalid_argument(os.str());
+    }
+  }
+  if (!std::isfinite(mu) || mu <= 0) {
+    std::ostringstream os;
+    os << "mu: expected a positive barrier weight, got " << mu;
+    throw std::invalid_argument(os.str());
+  }
+  for (long s = 0; s < B; ++s)
+    value[s] = rbd::log_barrier(n, x + s * n, lower + s * n, upper + s * n, mu, grad + s * n, Hdiag + s * n);
+}
+
+}  // namespace batch
+}  // namespace rbd
