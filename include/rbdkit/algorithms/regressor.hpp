@@ -105,22 +105,26 @@ RBD_HD void regressor_forward_pass(const ModelView<S>& m, Workspace<S>& w, const
 }
 
 // ----------------------------------------------------------------- regressor
-// backward pass: Y[j, 10b + p] = s_j · f_b(e_p) for the DoFs j supporting b.
+// backward pass: Y[j, 10b + p] = s_j · f_b(e_p) for the DoFs j supporting b,
+// f_b(e_p) formed in the body frame (sparse unit inertia) and moved to the world.
 //   reads w.Xw, w.Sw, w.v, w.a; writes Y (nv x 10 nb, row-major)
 template <typename S> RBD_HD void regressor_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* Y) {
   const int nv = m.nv, np = 10 * m.nb;
   for (int k = 0; k < nv * np; ++k) Y[k] = S(0);
-  for (int b = 0; b < m.nb; ++b)
+  for (int b = 0; b < m.nb; ++b) {
+    const Transform<S>& Xw = w.Xw[b];
+    const Motion<S> v = Xw.act_inv(w.v[b]), a = Xw.act_inv(w.a[b]);  // body frame
     for (int p = 0; p < 10; ++p) {
       // net world force of body b carrying the unit parameter e_p
-      const Inertia<S> oI = transform_inertia(w.Xw[b], unit_inertia<S>(p));
-      const Force<S> f = oI * w.a[b] + cross(w.v[b], oI * w.v[b]);
+      const Inertia<S> I = unit_inertia<S>(p);
+      const Force<S> f = Xw.act(I * a + cross(v, I * v));
       // its joint forces on b's support
       for (int j = b; j >= 0; j = m.body[j].parent) {
         const BodyDesc<S>& bj = m.body[j];
         for (int k = 0; k < bj.nv; ++k) Y[(bj.v_idx + k) * np + 10 * b + p] += dot(w.Sw[6 * j + k], f);
       }
     }
+  }
 }
 
 // Y (nv x 10 nb, row-major) with tau = Y·π = ID(q, qd, qdd) for the model's π;
