@@ -18,6 +18,7 @@
 #include "rbdkit/algorithms/aba.hpp"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/integrators.hpp"
 #include "rbdkit/algorithms/minv.hpp"
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/configuration.hpp"
@@ -54,6 +55,27 @@ __global__ void all_algorithms(ModelView<S> m, int B, const S* q, const S* qd, c
   aba_derivatives(m, w, qs, vs, tau_in + s * nv, static_cast<const S*>(nullptr), gravity, out.qdd_grad + s * nv,
                   out.dqdd_dq + s * nv * nv, out.dqdd_dqd + s * nv * nv);
 }
+
+// one integrator step with its Jacobian per thread; compiled here so that the
+// integrator family stays device code (the CPU results are checked in
+// tests/python/test_integrators.py)
+template <typename S>
+__global__ void integrator_steps(ModelView<S> m, int B, int type, const S* q, const S* v, const S* u, S dt,
+                                 unsigned char* scratch, unsigned long ws_bytes, S* values, long n_values,
+                                 S* x_next, S* AB) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= B) return;
+  Workspace<S> w = carve_workspace<S>(scratch + s * ws_bytes, m.nb, m.nv);
+  const int nq = m.nq, nv = m.nv;
+  integrator_gradient(m, w, type, q + s * nq, v + s * nv, u + s * nv, static_cast<const S*>(nullptr), dt, S(-9.81),
+                      x_next + s * (nq + nv), x_next + s * (nq + nv) + nq, AB + s * 6L * nv * nv,
+                      values + s * n_values);
+}
+template __global__ void integrator_steps<double>(ModelView<double>, int, int, const double*, const double*,
+                                                  const double*, double, unsigned char*, unsigned long, double*,
+                                                  long, double*, double*);
+template __global__ void integrator_steps<float>(ModelView<float>, int, int, const float*, const float*, const float*,
+                                                 float, unsigned char*, unsigned long, float*, long, float*, float*);
 
 #define CHECK_CUDA(x)                                                           \
   do {                                                                          \

@@ -11,6 +11,7 @@ import numpy as np
 from . import _core
 from ._checks import Batch, check_choice, check_scalar
 from ._derivatives import DerivativesMixin
+from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
 from ._regressor import RegressorMixin
@@ -18,7 +19,7 @@ from ._regressor import RegressorMixin
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin, RegressorMixin):
+class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, RegressorMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

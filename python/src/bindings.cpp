@@ -20,6 +20,7 @@ namespace nb = nanobind;
 using namespace nb::literals;
 
 void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
+void bind_integrators(nb::module_& m);  // bind_integrators.cpp
 using rbd::Model;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
@@ -67,6 +68,7 @@ nb::dict joint_dict(const rbd::JointInfo& j) {
 NB_MODULE(_core, m) {
   m.doc() = "rbdkit compiled core";
   bind_derivatives(m);
+  bind_integrators(m);
 
   nb::class_<Model>(m, "Model")
       .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false)

@@ -44,6 +44,8 @@ METHODS = {
     "inverse_dynamics_gradient_fpass_dqd": ("q", "qd", "qdd"),
     "inverse_dynamics_gradient_bpass_dq": ("q", "qd", "qdd", "dV_dq", "dA_dq"),
     "inverse_dynamics_gradient_bpass_dqd": ("q", "qd", "qdd", "S", "dA_dqd"),
+    "integrator": ("q", "qd", "u", "f_ext"),
+    "integrator_gradient": ("q", "qd", "u", "f_ext"),
     "inverse_dynamics_regressor": ("q", "qd", "qdd"),
     "inverse_dynamics_regressor_gradient": ("q", "qd", "qdd"),
     "forward_dynamics_parameter_gradient": ("q", "qd", "u"),
@@ -53,7 +55,7 @@ METHODS = {
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
         "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols"}
-OPTIONAL = {("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
+OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
             ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
             ("inverse_dynamics_fpass", "f_ext"), ("inverse_dynamics_gradient_fpass_dq", "qdd"),
             ("inverse_dynamics_gradient_fpass_dqd", "qdd"), ("inverse_dynamics_gradient_bpass_dq", "qdd"),
@@ -102,6 +104,8 @@ def valid_args(model, method):
 def call(rbd, method, args):
     if method == "time_per_call":
         return rbd.time_per_call("crba", iters=1, **args)
+    if method in ("integrator", "integrator_gradient"):
+        return getattr(rbd, method)(dt=0.01, integrator_type="rk4", **args)
     return getattr(rbd, method)(**args)
 
 

@@ -1,0 +1,25 @@
+// rbdkit/integrators_api.hpp — host entry points of the time integrators
+// (batched, checked; conventions in dynamics.hpp). Host only.
+#pragma once
+
+#include <string>
+
+#include "algorithms/integrators.hpp"
+#include "dynamics.hpp"
+
+namespace rbd {
+
+// "euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal",
+// "constant_acceleration" -> IntegratorType; anything else throws
+// std::invalid_argument listing the valid names
+int integrator_from_name(const std::string& name);
+
+namespace batch {
+// x⁺ = [q⁺; v⁺] (B x (nq + nv)); fext (B x nb x 6) may be null
+void integrator(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
+                double dt, double gravity, int type, double* x_next);
+// x⁺ and [A | B] = ∂x⁺/∂(x, u) (B x 2nv x 3nv), tangent space
+void integrator_gradient(const Model& m, long B, const double* q, const double* v, const double* u,
+                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB);
+}  // namespace batch
+}  // namespace rbd

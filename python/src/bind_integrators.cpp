@@ -1,0 +1,35 @@
+// rbdkit._core: time integrators (arrays as in bindings.cpp).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+
+#include "rbdkit/integrators_api.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using rbd::Model;
+
+namespace {
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+const double* opt(const std::optional<In>& a) { return a ? a->data() : nullptr; }
+}  // namespace
+
+void bind_integrators(nb::module_& m) {
+  m.def("integrator_from_name", &rbd::integrator_from_name, "name"_a);
+  m.def("integrator",
+        [](const Model& md, In q, In v, In u, std::optional<In> fext, double dt, double g, int type, Out x) {
+          nb::gil_scoped_release r;
+          rbd::batch::integrator(md, static_cast<long>(q.shape(0)), q.data(), v.data(), u.data(), opt(fext), dt, g,
+                                 type, x.data());
+        },
+        "model"_a, "q"_a, "v"_a, "u"_a, "fext"_a.none(), "dt"_a, "gravity"_a, "type"_a, "x"_a);
+  m.def("integrator_gradient",
+        [](const Model& md, In q, In v, In u, std::optional<In> fext, double dt, double g, int type, Out x, Out AB) {
+          nb::gil_scoped_release r;
+          rbd::batch::integrator_gradient(md, static_cast<long>(q.shape(0)), q.data(), v.data(), u.data(), opt(fext),
+                                          dt, g, type, x.data(), AB.data());
+        },
+        "model"_a, "q"_a, "v"_a, "u"_a, "fext"_a.none(), "dt"_a, "gravity"_a, "type"_a, "x"_a, "AB"_a);
+}

@@ -1,0 +1,78 @@
+// Host entry points of the time integrators.
+#include "rbdkit/integrators_api.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace rbd {
+
+int integrator_from_name(const std::string& name) {
+  static const char* names[] = {"euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal",
+                                "constant_acceleration"};
+  for (int k = 0; k < 6; ++k)
+    if (name == names[k]) return k;
+  std::string hint;
+  if (name == "rk3") hint = " (rk3 was removed)";
+  if (name == "si_euler") hint = " (si_euler was removed; use semi_implicit_euler)";
+  throw std::invalid_argument("integrator_type: unknown integrator '" + name + "'" + hint +
+                              "; expected one of euler, semi_implicit_euler, midpoint, rk4, trapezoidal, "
+                              "constant_acceleration");
+}
+
+namespace batch {
+namespace {
+void check_step(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
+                double dt, double gravity, int type) {
+  check_configurations(m, B, q, "q");
+  check_finite(v, B * m.nv, "qd");
+  check_finite(u, B * m.nv, "u");
+  if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
+  check_finite(&gravity, 1, "gravity");
+  if (!std::isfinite(dt) || dt <= 0) {
+    std::ostringstream os;
+    os << "dt: expected a positive finite time step, got " << dt;
+    throw std::invalid_argument(os.str());
+  }
+  if (type < kEuler || type > kConstantAcceleration) throw std::invalid_argument("integrator_type: out of range");
+}
+[[noreturn]] void not_pd(const char* what, long s) {
+  std::ostringstream os;
+  os << what << ": the mass matrix is not positive definite at sample " << s;
+  throw std::runtime_error(os.str());
+}
+}  // namespace
+
+void integrator(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
+                double dt, double gravity, int type, double* x_next) {
+  check_step(m, B, q, v, u, fext, dt, gravity, type);
+  WorkspaceBuffer buf(m);
+  const ModelView<double> mv = m.view();
+  const int nq = m.nq, nv = m.nv;
+  std::vector<double> scratch(integrator_scratch_values(nq, nv));
+  for (long s = 0; s < B; ++s) {
+    double* x = x_next + s * (nq + nv);
+    if (!integrator_step(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
+                         fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq, scratch.data()))
+      not_pd("integrator", s);
+  }
+}
+
+void integrator_gradient(const Model& m, long B, const double* q, const double* v, const double* u,
+                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB) {
+  check_step(m, B, q, v, u, fext, dt, gravity, type);
+  WorkspaceBuffer buf(m);
+  const ModelView<double> mv = m.view();
+  const int nq = m.nq, nv = m.nv;
+  std::vector<double> scratch(integrator_gradient_scratch_values(nq, nv));
+  for (long s = 0; s < B; ++s) {
+    double* x = x_next + s * (nq + nv);
+    if (!rbd::integrator_gradient(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
+                                  fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq,
+                                  AB + s * 6L * nv * nv, scratch.data()))
+      not_pd("integrator_gradient", s);
+  }
+}
+
+}  // namespace batch
+}  // namespace rbd

@@ -1,0 +1,184 @@
+"""Time integrators: step values against references built from Pinocchio
+(pin.aba + pin.integrate, the same schemes written out in NumPy), Jacobians
+[A | B] against central finite differences in the tangent space, and the
+convergence orders of the schemes (halving dt)."""
+
+import os
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import rbdkit
+from pinref import ROBOTS_DIR, URDF_DIR, Reference, assert_close
+
+SCHEMES = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
+CASES = [(f"{n}-{'floating' if fb else 'fixed'}", os.path.join(ROBOTS_DIR, n + ".urdf"), fb)
+         for n in ("iiwa", "hyq", "atlas") for fb in (False, True)]
+CASES += [(f"{n}-{'floating' if fb else 'fixed'}", os.path.join(URDF_DIR, n + ".urdf"), fb)
+          for n in ("spherical", "helical", "mimic") for fb in (False, True)]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=[c[0] for c in CASES])
+def ref(request):
+    return Reference(request.param[1], request.param[2])
+
+
+def state(model, seed=0):
+    rng = np.random.default_rng(seed)
+    return (model.random_configuration(rng), rng.uniform(-2, 2, model.nv), rng.uniform(-10, 10, model.nv),
+            rng.uniform(-3, 3, (model.nb, 6)))
+
+
+def reference_step(ref, q, v, u, dt, scheme, fext=None):
+    """the step in Pinocchio's coordinates, from Pinocchio's aba and integrate"""
+    m = ref.model
+    G = ref.G
+    qp, vp = ref.q(q), G @ v
+
+    def acc(qq_pin, vv_pin):
+        # reduced forward dynamics at a Pinocchio state: the state is G-mapped from a reduced one
+        vr = np.linalg.lstsq(G, vv_pin, rcond=None)[0]
+        return G @ ref_forward(ref, qq_pin, vr, u, fext)
+
+    def integ(qq, w):
+        return pin.integrate(ref.pin, qq, w)
+
+    if scheme in ("euler", "semi_implicit_euler", "constant_acceleration"):
+        a = acc(qp, vp)
+        vn = vp + dt * a
+        w = {"euler": dt * vp, "semi_implicit_euler": dt * vn, "constant_acceleration": dt * vp + 0.5 * dt * dt * a}
+        return integ(qp, w[scheme]), vn
+    c, bw = {"midpoint": ([0, 0.5], [0, 1]), "trapezoidal": ([0, 1], [0.5, 0.5]),
+             "rk4": ([0, 0.5, 0.5, 1], [1 / 6, 1 / 3, 1 / 3, 1 / 6])}[scheme]
+    vs, a_s = vp, acc(qp, vp)
+    vsum, asum = bw[0] * vs, bw[0] * a_s
+    for s in range(1, len(c)):
+        qs = integ(qp, c[s] * dt * vs)
+        vs = vp + c[s] * dt * a_s
+        a_s = acc(qs, vs)
+        vsum, asum = vsum + bw[s] * vs, asum + bw[s] * a_s
+    return integ(qp, dt * vsum), vp + dt * asum
+
+
+def ref_forward(ref, q_pin, v_red, u, fext):
+    """reduced forward dynamics at a Pinocchio configuration (mimic: through G)"""
+    ref.set_gravity(-9.81)
+    G = ref.G
+    args = (ref.pin, ref.data, q_pin, G @ v_red, np.zeros(ref.pin.nv))
+    fx = ref.fext(fext) if fext is not None else None
+    c = G.T @ (pin.rnea(*args, fx) if fx is not None else pin.rnea(*args))
+    M = pin.crba(ref.pin, ref.data, q_pin)
+    M = np.triu(M) + np.triu(M, 1).T
+    return np.linalg.solve(G.T @ M @ G, u - c)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_step_matches_pinocchio_reference(ref, scheme):
+    rbd = rbdkit.RBD(ref.model)
+    m = ref.model
+    for seed, fx in ((0, False), (1, True)):
+        q, v, u, fext = state(m, seed)
+        fext = fext if fx else None
+        x = rbd.integrator(q, v, u, 0.01, scheme, f_ext=fext)
+        qn, vn = reference_step(ref, q, v, u, 0.01, scheme, fext)
+        assert_close(ref.q(x[:m.nq]), qn, f"{scheme} q+")
+        assert_close(ref.G @ x[m.nq:], vn, f"{scheme} v+")
+        # plant_step is the same step on x = [q; qd]
+        np.testing.assert_array_equal(rbd.plant_step(np.concatenate([q, v]), u, 0.01, scheme, f_ext=fext), x)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_gradient_by_finite_differences(ref, scheme):
+    rbd = rbdkit.RBD(ref.model)
+    m, nv = ref.model, ref.model.nv
+    q, v, u, fext = state(m, 3)
+    dt = 0.02
+    AB = rbd.integrator_gradient(q, v, u, dt, scheme, f_ext=fext)
+    assert AB.shape == (2 * nv, 3 * nv)
+    x0 = rbd.integrator(q, v, u, dt, scheme, f_ext=fext)
+
+    def step(d):
+        return rbd.integrator(rbd.integrate(q, d[:nv]), v + d[nv:2 * nv], u + d[2 * nv:], dt, scheme, f_ext=fext)
+
+    def tangent(x):  # x relative to x0, in the tangent space at x0
+        return np.concatenate([rbd.difference(x0[:m.nq], x[:m.nq]), x[m.nq:] - x0[m.nq:]])
+
+    F = np.zeros_like(AB)
+    eps = 1e-5
+    for k in range(3 * nv):
+        d = np.zeros(3 * nv)
+        d[k] = eps
+        F[:, k] = (tangent(step(d)) - tangent(step(-d))) / (2 * eps)
+    assert_close(AB, F, f"{scheme} [A|B] vs FD", 1e-6)
+    np.testing.assert_array_equal(rbd.plant_step_gradient(np.concatenate([q, v]), u, dt, scheme, f_ext=fext), AB)
+
+
+def global_error(rbd, q, v, u, T, n, scheme, q_ref, v_ref):
+    dt = T / n
+    for _ in range(n):
+        x = rbd.integrator(q, v, u, dt, scheme)
+        q, v = x[:rbd.nq], x[rbd.nq:]
+    return max(np.abs(rbd.difference(q_ref, q)).max(), np.abs(v - v_ref).max())
+
+
+@pytest.mark.parametrize("robot,floating,orders", [
+    ("iiwa", False, {"euler": 1, "semi_implicit_euler": 1, "constant_acceleration": 1, "midpoint": 2,
+                     "trapezoidal": 2, "rk4": 4}),
+    ("hyq", True, {"euler": 1, "midpoint": 2, "trapezoidal": 2, "rk4": 2}),
+])
+def test_convergence_orders(robot, floating, orders):
+    # global error over 0.2 s against a fine RK4 solution; halving dt divides it by about 2^p.
+    # On the floating base the base-point retractions limit RK4 to order 2 (no Munthe-Kaas correction).
+    model = rbdkit.robots.load(robot, floating_base=floating)
+    rbd = rbdkit.RBD(model)
+    rng = np.random.default_rng(0)
+    q, v = model.random_configuration(rng, 0.5), rng.uniform(-1, 1, model.nv)
+    if floating:
+        v[3:6] = [4.0, -3.0, 5.0]  # a spinning base makes the rotational error term dominate
+    u = rbd.generalized_gravity(q) + rng.uniform(-2, 2, model.nv)
+    T = 0.2
+    qr, vr = q, v
+    n_ref = 4000
+    for _ in range(n_ref):
+        x = rbd.integrator(qr, vr, u, T / n_ref, "rk4")
+        qr, vr = x[:model.nq], x[model.nq:]
+    for scheme, p in orders.items():
+        e1 = global_error(rbd, q, v, u, T, 20, scheme, qr, vr)
+        e2 = global_error(rbd, q, v, u, T, 40, scheme, qr, vr)
+        rate = np.log2(e1 / e2)
+        assert abs(rate - p) < 0.35, f"{scheme}: observed order {rate:.2f}, expected {p}"
+
+
+def test_bad_integrator_arguments():
+    model = rbdkit.robots.load("iiwa")
+    rbd = rbdkit.RBD(model)
+    q, v, u = model.neutral(), np.zeros(model.nv), np.zeros(model.nv)
+    for name in ("rk3", "si_euler", "RK4", "implicit"):
+        with pytest.raises(ValueError, match=r"^integrator_type: unknown integrator .*expected one of euler"):
+            rbd.integrator(q, v, u, 0.01, name)
+    with pytest.raises(TypeError, match="^integrator_type"):
+        rbd.integrator(q, v, u, 0.01, 4)
+    for dt in (0.0, -0.01, np.nan, np.inf):
+        with pytest.raises(ValueError, match="^dt: "):
+            rbd.integrator_gradient(q, v, u, dt)
+    with pytest.raises(ValueError, match=r"^x: expected shape"):
+        rbd.plant_step(q, u, 0.01)
+    with pytest.raises(ValueError, match=r"^u: expected shape"):
+        rbd.integrator(q, v, np.zeros(3), 0.01)
+    with pytest.raises(ValueError, match="^qd: expected finite"):
+        rbd.integrator(q, np.full(model.nv, np.nan), u, 0.01)
+
+
+def test_batched_steps_equal_single_steps():
+    model = rbdkit.robots.load("hyq", floating_base=True)
+    rbd = rbdkit.RBD(model)
+    rng = np.random.default_rng(4)
+    Q = np.stack([model.random_configuration(rng) for _ in range(5)])
+    V, U = rng.normal(size=(5, model.nv)), rng.normal(size=(5, model.nv))
+    for scheme in SCHEMES:
+        X = rbd.integrator(Q, V, U, 0.01, scheme)
+        AB = rbd.integrator_gradient(Q, V, U, 0.01, scheme)
+        for k in range(5):
+            np.testing.assert_array_equal(X[k], rbd.integrator(Q[k], V[k], U[k], 0.01, scheme))
+            np.testing.assert_array_equal(AB[k], rbd.integrator_gradient(Q[k], V[k], U[k], 0.01, scheme))
