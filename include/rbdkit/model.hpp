@@ -69,6 +69,20 @@ class Model {
 
   std::vector<double> neutral() const;
 
+  // inertial parameters π (10 nb): per body, in body order, [m, m·c_x, m·c_y,
+  // m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz], I about the body-frame origin
+  // in body axes (Pinocchio's dynamic parameters; docs/conventions.md)
+  std::vector<double> inertial_parameters() const;
+  // a copy of this model with the inertial parameters pi (10 nb); this model
+  // is unchanged. Throws std::invalid_argument (naming the link) for a wrong
+  // length or a non-finite value, and, for every body whose 10 values differ
+  // from this model's, a physically inconsistent inertia: negative mass, zero
+  // mass with a non-zero first moment, or a rotational inertia about the
+  // centre of mass that is not positive semi-definite or breaks the triangle
+  // inequalities (to 1e-10 of the trace of I). Bodies passed back unchanged
+  // keep their values as read (the URDF reader's checks apply to them).
+  Model with_inertial_parameters(const std::vector<double>& pi) const;
+
   // fills nv_subtree of every body; called by the builders
   void finalize();
 };

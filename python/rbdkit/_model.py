@@ -6,6 +6,7 @@ import warnings
 import numpy as np
 
 from . import _core
+from ._checks import as_real_array
 
 
 class Model:
@@ -81,6 +82,29 @@ class Model:
     def neutral(self):
         """the neutral configuration (nq,): zero joints, identity quaternions"""
         return np.array(self._core.neutral())
+
+    def inertial_parameters(self):
+        """π (10·nb,): per body, in body order (body_names), [m, m·c_x, m·c_y,
+        m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] with I the rotational
+        inertia about the body-frame origin in body axes (Pinocchio's dynamic
+        parameters); fixed links merged into a body are included in it"""
+        return np.array(self._core.inertial_parameters())
+
+    def with_inertial_parameters(self, pi):
+        """a new Model with the inertial parameters pi (10·nb,) (this one is
+        unchanged). ValueError, naming the link, for non-finite values and,
+        on every body whose 10 values differ from this model's, a physically
+        inconsistent inertia: negative mass, zero mass with a non-zero first
+        moment, a rotational inertia about the centre of mass that is not
+        positive semi-definite or breaks the triangle inequalities. Bodies
+        passed back unchanged keep their values as read from the URDF."""
+        a = as_real_array(pi, "pi")
+        n = 10 * self.nb
+        if a.shape != (n,):
+            raise ValueError(f"pi: expected shape ({n},) with 10*nb={n}, got shape {a.shape}")
+        new = object.__new__(Model)  # no second round of the reader's warnings
+        new._core = self._core.with_inertial_parameters(a.tolist())
+        return new
 
     def random_configuration(self, rng=None, scale=1.0):
         """a random configuration: neutral ⊕ uniform(-scale, scale) tangent

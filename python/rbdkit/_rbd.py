@@ -15,11 +15,12 @@ from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
+from ._regressor import RegressorMixin
 
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin):
+class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

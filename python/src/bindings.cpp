@@ -25,6 +25,7 @@ void bind_costs(nb::module_& m);        // bind_costs.cpp
 using rbd::Model;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
+void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
@@ -111,7 +112,9 @@ NB_MODULE(_core, m) {
              std::vector<double> p = {f.X_body_frame.p.x, f.X_body_frame.p.y, f.X_body_frame.p.z};
              return nb::make_tuple(f.body, f.kind, R, p);
            })
-      .def("neutral", &Model::neutral);
+      .def("neutral", &Model::neutral)
+      .def("inertial_parameters", &Model::inertial_parameters)
+      .def("with_inertial_parameters", &Model::with_inertial_parameters, "pi"_a);
 
   // ---- batched dynamics: inputs (B, n) C-contiguous float64, outputs preallocated
   m.def("inverse_dynamics",
@@ -190,4 +193,5 @@ NB_MODULE(_core, m) {
         "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
 
   bind_kinematics(m);
+  bind_regressor(m);
 }

@@ -257,3 +257,59 @@ def all_models():
         for fb in (False, True):
             cases.append((f"{name}-{'floating' if fb else 'fixed'}", os.path.join(URDF_DIR, name + ".urdf"), fb))
     return cases
+
+
+# ---- inertial-parameter regressors (methods of Reference). Pinocchio's
+# parameter blocks follow its joints; rbdkit's follow its bodies: P maps them.
+def _parameter_map(self):
+    """P (10·njoints, 10·nb): rbdkit's π = Pᵀ π_pin, Y_rbdkit = Gᵀ Y_pin P"""
+    P = np.zeros((10 * (self.pin.njoints - 1), 10 * self.model.nb))
+    for jid in range(1, self.pin.njoints):
+        b = self.body_of_joint[jid]
+        P[10 * (jid - 1):10 * jid, 10 * b:10 * b + 10] = np.eye(10)
+    return P
+
+
+def _dynamic_parameters(self):
+    """Pinocchio's inertias as dynamic parameters, in rbdkit's body order (10·nb,)"""
+    pi = np.concatenate([self.pin.inertias[j].toDynamicParameters() for j in range(1, self.pin.njoints)])
+    return self.parameter_map().T @ pi
+
+
+def _joint_torque_regressor(self, q, v, a, g=-9.81):
+    self.set_gravity(g)
+    Y = pin.computeJointTorqueRegressor(self.pin, self.data, self.q(q), self.v(v), self.v(a))
+    return self.G.T @ Y @ self.parameter_map()
+
+
+def _kinetic_energy_regressor(self, q, v):
+    return pin.computeKineticEnergyRegressor(self.pin, self.data, self.q(q), self.v(v)) @ self.parameter_map()
+
+
+def _potential_energy_regressor(self, q, g=-9.81):
+    self.set_gravity(g)
+    return pin.computePotentialEnergyRegressor(self.pin, self.data, self.q(q)) @ self.parameter_map()
+
+
+def _potential_energy(self, q, g=-9.81):
+    self.set_gravity(g)
+    return pin.computePotentialEnergy(self.pin, self.data, self.q(q))
+
+
+def _rnea_with_parameters(self, pi, q, v, a, g=-9.81):
+    """reduced RNEA of a copy of the Pinocchio model whose inertias are rbdkit's π (10·nb,)"""
+    pm = pin.Model(self.pin)
+    pm.gravity.linear = np.array([0.0, 0.0, g])
+    for jid in range(1, pm.njoints):
+        b = self.body_of_joint[jid]
+        pm.inertias[jid] = pin.Inertia.FromDynamicParameters(np.asarray(pi[10 * b:10 * b + 10], dtype=float))
+    return self.G.T @ pin.rnea(pm, pm.createData(), self.q(q), self.v(v), self.v(a))
+
+
+Reference.parameter_map = _parameter_map
+Reference.dynamic_parameters = _dynamic_parameters
+Reference.joint_torque_regressor = _joint_torque_regressor
+Reference.kinetic_energy_regressor = _kinetic_energy_regressor
+Reference.potential_energy_regressor = _potential_energy_regressor
+Reference.potential_energy = _potential_energy
+Reference.rnea_with_parameters = _rnea_with_parameters

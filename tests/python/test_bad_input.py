@@ -46,6 +46,11 @@ METHODS = {
     "inverse_dynamics_gradient_bpass_dqd": ("q", "qd", "qdd", "S", "dA_dqd"),
     "integrator": ("q", "qd", "u", "f_ext"),
     "integrator_gradient": ("q", "qd", "u", "f_ext"),
+    "inverse_dynamics_regressor": ("q", "qd", "qdd"),
+    "inverse_dynamics_regressor_gradient": ("q", "qd", "qdd"),
+    "forward_dynamics_parameter_gradient": ("q", "qd", "u"),
+    "kinetic_energy_regressor": ("q", "qd"),
+    "potential_energy_regressor": ("q",),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
@@ -56,11 +61,14 @@ OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("inverse
             ("inverse_dynamics_gradient_fpass_dqd", "qdd"), ("inverse_dynamics_gradient_bpass_dq", "qdd"),
             ("inverse_dynamics_gradient_bpass_dqd", "qdd"),
             ("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
-            ("forward_dynamics", "f_ext")}
+            ("forward_dynamics", "f_ext"), ("inverse_dynamics_regressor", "qdd"),
+            ("inverse_dynamics_regressor_gradient", "qdd")}
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
-                "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd")
+                "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd",
+                "inverse_dynamics_regressor", "inverse_dynamics_regressor_gradient",
+                "forward_dynamics_parameter_gradient", "potential_energy_regressor")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
