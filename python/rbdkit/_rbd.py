@@ -9,6 +9,7 @@ batch axis when any argument did.
 import numpy as np
 
 from . import _core
+from ._centroidal import CentroidalMixin
 from ._checks import Batch, check_choice, check_scalar
 from ._derivatives import DerivativesMixin
 from ._model import Model
@@ -17,7 +18,7 @@ from ._kinematics import KinematicsMixin
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin):
+class RBD(DerivativesMixin, KinematicsMixin, CentroidalMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):
