@@ -9,6 +9,7 @@ batch axis when any argument did.
 import numpy as np
 
 from . import _core
+from ._centroidal import CentroidalMixin
 from ._checks import Batch, check_choice, check_scalar
 from ._costs import CostsMixin
 from ._derivatives import DerivativesMixin
@@ -20,7 +21,8 @@ from ._regressor import RegressorMixin
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin):
+class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin,
+          CentroidalMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

@@ -313,3 +313,60 @@ Reference.kinetic_energy_regressor = _kinetic_energy_regressor
 Reference.potential_energy_regressor = _potential_energy_regressor
 Reference.potential_energy = _potential_energy
 Reference.rnea_with_parameters = _rnea_with_parameters
+
+
+# ---- energy, Coriolis and centroidal references (reduced coordinates: · G)
+def _ref_kinetic_energy(self, q, v):
+    return pin.computeKineticEnergy(self.pin, self.data, self.q(q), self.v(v))
+
+
+def _ref_potential_energy(self, q, g=-9.81):
+    self.set_gravity(g)
+    return pin.computePotentialEnergy(self.pin, self.data, self.q(q))
+
+
+def _ref_coriolis(self, q, v):
+    C = pin.computeCoriolisMatrix(self.pin, self.data, self.q(q), self.v(v))
+    return self.G.T @ C @ self.G
+
+
+def _ref_com(self, q):
+    return pin.centerOfMass(self.pin, self.data, self.q(q)).copy()
+
+
+def _ref_jacobian_com(self, q):
+    return pin.jacobianCenterOfMass(self.pin, self.data, self.q(q)) @ self.G
+
+
+def _ref_ccrba(self, q, v):
+    A = pin.ccrba(self.pin, self.data, self.q(q), self.v(v)) @ self.G
+    return A, self.data.hg.vector.copy()
+
+
+def _ref_cmm_time_variation(self, q, v):
+    # Pinocchio 4.1's computeCentroidalMapTimeVariation reads data.vcom[0]
+    # without computing it (it keeps whatever an earlier call left there), so
+    # the centroidal momentum at the same (q, v) is computed first
+    pin.computeCentroidalMomentum(self.pin, self.data, self.q(q), self.v(v))
+    return pin.computeCentroidalMapTimeVariation(self.pin, self.data, self.q(q), self.v(v)) @ self.G
+
+
+def _ref_centroidal_momentum_time_variation(self, q, v, a):
+    return pin.computeCentroidalMomentumTimeVariation(self.pin, self.data, self.q(q), self.v(v),
+                                                      self.v(a)).vector.copy()
+
+
+def _ref_centroidal_dynamics_derivatives(self, q, v, a):
+    out = pin.computeCentroidalDynamicsDerivatives(self.pin, self.data, self.q(q), self.v(v), self.v(a))
+    return tuple(np.array(d) @ self.G for d in out)
+
+
+Reference.kinetic_energy = _ref_kinetic_energy
+Reference.potential_energy = _ref_potential_energy
+Reference.coriolis = _ref_coriolis
+Reference.com = _ref_com
+Reference.jacobian_com = _ref_jacobian_com
+Reference.ccrba = _ref_ccrba
+Reference.cmm_time_variation = _ref_cmm_time_variation
+Reference.centroidal_momentum_time_variation = _ref_centroidal_momentum_time_variation
+Reference.centroidal_dynamics_derivatives = _ref_centroidal_dynamics_derivatives

@@ -51,6 +51,20 @@ METHODS = {
     "forward_dynamics_parameter_gradient": ("q", "qd", "u"),
     "kinetic_energy_regressor": ("q", "qd"),
     "potential_energy_regressor": ("q",),
+    "kinetic_energy": ("q", "qd"),
+    "potential_energy": ("q",),
+    "mechanical_energy": ("q", "qd"),
+    "coriolis_matrix": ("q", "qd"),
+    "com": ("q",),
+    "jacobian_com": ("q",),
+    "ccrba": ("q", "qd"),
+    "centroidal_momentum": ("q", "qd"),
+    "dccrba": ("q",),
+    "dccrba_fd": ("q",),
+    "cmm_time_variation": ("q", "qd"),
+    "cmm_time_variation_fd": ("q", "qd"),
+    "centroidal_momentum_time_variation": ("q", "qd", "qdd"),
+    "centroidal_dynamics_derivatives": ("q", "qd", "qdd"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
@@ -68,7 +82,8 @@ WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_grav
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
                 "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd",
                 "inverse_dynamics_regressor", "inverse_dynamics_regressor_gradient",
-                "forward_dynamics_parameter_gradient", "potential_energy_regressor")
+                "forward_dynamics_parameter_gradient", "potential_energy_regressor", "potential_energy",
+                "mechanical_energy")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
@@ -325,6 +340,16 @@ def test_bad_with_respect_to(rbd, hyq):
             rbd.d2Integrate(q, v, bad, "v")
         with pytest.raises(ValueError, match="^arg2: expected one of 'q', 'v'"):
             rbd.d2Integrate(q, v, "v", bad)
+
+
+@pytest.mark.parametrize("method", ["dccrba_fd", "cmm_time_variation_fd"])
+def test_bad_finite_difference_step(rbd, hyq, method):
+    for bad in (0, 0.0, -1e-5, np.nan, np.inf):
+        with pytest.raises(ValueError, match="^eps: expected a (positive finite-difference step|finite number)"):
+            call(rbd, method, {**valid_args(hyq, method), "eps": bad})
+    for bad in ("1e-5", None, True, [1e-5]):
+        with pytest.raises(TypeError, match="^eps: expected a real number"):
+            call(rbd, method, {**valid_args(hyq, method), "eps": bad})
 
 
 def test_output_dense_must_be_bool(rbd, hyq):
