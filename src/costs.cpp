@@ -71,6 +71,66 @@ void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, c
   }
 }
 
+void com_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, double* value,
+              double* grad, double* H) {
+  check_configurations(m, B, q, "q");
+  check_finite(p_des, B * 3, "p_des");
+  check_weights(W, B * 3, "W");
+  const int nv = m.nv, nx = m.nq + m.nv;
+  std::vector<double> c(B * 3), J(B * 3 * nv);
+  center_of_mass(m, B, q, c.data());
+  jacobian_com(m, B, q, J.data());
+  for (long s = 0; s < B; ++s) {
+    double r[3];
+    for (int k = 0; k < 3; ++k) r[k] = c[s * 3 + k] - p_des[s * 3 + k];
+    value[s] = residual_cost_embedded(3, r, W + s * 3, J.data() + s * 3 * nv, m.nq, nv, grad + s * nx,
+                                      H + s * nx * nx);
+  }
+}
+
+void momentum_cost(const Model& m, long B, const double* q, const double* qd, const double* h_des, const double* W,
+                   double* value, double* grad, double* H) {
+  check_configurations(m, B, q, "q");
+  check_finite(qd, B * m.nv, "qd");
+  check_finite(h_des, B * 6, "h_des");
+  check_weights(W, B * 6, "W");
+  const int nv = m.nv, n2 = 2 * nv;
+  std::vector<double> A(6 * nv), h(6), dA(6 * nv * nv), J(6 * n2);
+  for (long s = 0; s < B; ++s) {
+    const double* qs = q + s * m.nq;
+    const double* vs = qd + s * nv;
+    ccrba(m, 1, qs, vs, A.data(), h.data());
+    dccrba(m, 1, qs, dA.data());
+    // J = [(∂A/∂q) qd | A]: column k of the first block is Σ_j dA[r][j][k] qd_j
+    for (int r = 0; r < 6; ++r) {
+      for (int k = 0; k < nv; ++k) {
+        double acc = 0;
+        for (int j = 0; j < nv; ++j) acc += dA[(r * nv + j) * nv + k] * vs[j];
+        J[r * n2 + k] = acc;
+        J[r * n2 + nv + k] = A[r * nv + k];
+      }
+    }
+    double res[6];
+    for (int r = 0; r < 6; ++r) res[r] = h[r] - h_des[s * 6 + r];
+    const double* w = W + s * 6;
+    double v = 0;
+    for (int r = 0; r < 6; ++r) v += 0.5 * w[r] * res[r] * res[r];
+    value[s] = v;
+    double* g = grad + s * n2;
+    double* Hs = H + s * n2 * n2;
+    for (int c = 0; c < n2; ++c) {
+      double acc = 0;
+      for (int r = 0; r < 6; ++r) acc += J[r * n2 + c] * w[r] * res[r];
+      g[c] = acc;
+      for (int c2 = 0; c2 < n2; ++c2) {
+        double hh = 0;
+        for (int r = 0; r < 6; ++r) hh += J[r * n2 + c] * w[r] * J[r * n2 + c2];
+        Hs[c * n2 + c2] = hh;
+      }
+    }
+  }
+}
+
 void log_barrier(long B, int n, const double* x, const double* lower, const double* upper, double mu,
                  double* value, double* grad, double* Hdiag, const char* x_name) {
   check_finite(x, B * n, x_name);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "algorithms/costs.hpp"
+#include "centroidal_api.hpp"
 #include "kinematics_api.hpp"
 
 namespace rbd {
@@ -17,6 +18,14 @@ void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const
 // `offset` (3, body frame): q (B x nq), p_des, W (B x 3) -> value (B), grad (B x NX), H (B x NX x NX)
 void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, int body,
                  const double* offset, double* value, double* grad, double* H);
+// centre-of-mass tracking: q (B x nq), p_des, W (B x 3) -> value (B), grad (B x NX), H (B x NX x NX)
+void com_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, double* value,
+              double* grad, double* H);
+// centroidal momentum tracking, r = A(q) qd - h_des (6), J = [(∂A/∂q) qd | A] (6 x 2nv):
+// q (B x nq), qd (B x nv), h_des, W (B x 6) -> value (B), grad Jᵀ W r (B x 2nv),
+// Gauss–Newton H = Jᵀ W J (B x 2nv x 2nv)
+void momentum_cost(const Model& m, long B, const double* q, const double* qd, const double* h_des, const double* W,
+                   double* value, double* grad, double* H);
 // log barrier over width n: value (B), grad (B x n), Hdiag (B x n)
 void log_barrier(long B, int n, const double* x, const double* lower, const double* upper, double mu,
                  double* value, double* grad, double* Hdiag, const char* x_name);

@@ -12,6 +12,9 @@ arguments take a leading batch axis. NX = nq + nv.
                                              grad (NX,), Gauss–Newton H (NX, NX); tangent δq in
                                              entries [0, nv), velocity entries [nq, NX) zero, the
                                              extra quaternion entries [nv, nq) zero
+  com_cost(q, p_des, W)                      the same for the centre of mass
+  momentum_cost(q, qd, h_des, W)             r = A(q)·qd - h_des, W (6,): grad (2nv,),
+                                             Gauss–Newton H (2nv, 2nv), J = [(∂A/∂q)·qd | A]
   joint_{position,velocity,torque}_barrier(x, lower, upper, mu)
                                              -mu Σ [log(x - lower) + log(upper - x)], infinite
                                              bounds add nothing; outside the open interval the
@@ -71,6 +74,32 @@ class CostsMixin:
         iw = b.add(W, "W", (3,), ("3",))
         v, g, H = b.out(), b.out(nx), b.out(nx, nx)
         _core.ee_pos_cost(self._m, b.get(iq), b.get(ip), b.get(iw), bodies[0], off, v, g, H)
+        return b.ret(v), b.ret(g), b.ret(H)
+
+    def com_cost(self, q, p_des, W):
+        """½ Σ W (com(q) - p_des)²: (value, grad (NX,), Gauss–Newton H (NX, NX)),
+        tangent blocks embedded as in ee_pos_cost."""
+        nx = self.nq + self.nv
+        b = Batch()
+        iq = self._q(b, q)
+        ip = b.add(p_des, "p_des", (3,), ("3",))
+        iw = b.add(W, "W", (3,), ("3",))
+        v, g, H = b.out(), b.out(nx), b.out(nx, nx)
+        _core.com_cost(self._m, b.get(iq), b.get(ip), b.get(iw), v, g, H)
+        return b.ret(v), b.ret(g), b.ret(H)
+
+    def momentum_cost(self, q, qd, h_des, W):
+        """½ Σ W r² with r = A(q)·qd - h_des (6,): (value, grad Jᵀ W r (2nv,),
+        Gauss–Newton H = Jᵀ W J (2nv, 2nv)) in tangent [δq | δqd] coordinates,
+        J = [(∂A/∂q)·qd | A] from dccrba (the full residual Jacobian: the
+        configuration dependence is kept, only the residual curvature is dropped)."""
+        n2 = 2 * self.nv
+        b = Batch()
+        iq, iv = self._q(b, q), self._v(b, qd, "qd")
+        ih = b.add(h_des, "h_des", (6,), ("6",))
+        iw = b.add(W, "W", (6,), ("6",))
+        v, g, H = b.out(), b.out(n2), b.out(n2, n2)
+        _core.momentum_cost(self._m, b.get(iq), b.get(iv), b.get(ih), b.get(iw), v, g, H)
         return b.ret(v), b.ret(g), b.ret(H)
 
     def _ee_point(self, offset):

@@ -36,6 +36,14 @@ void bind_costs(nb::module_& m) {
                                   v.data(), g.data(), H.data());
         },
         "model"_a, "q"_a, "p_des"_a, "W"_a, "body"_a, "offset"_a.none(), "value"_a, "grad"_a, "H"_a);
+  m.def("com_cost", [](const Model& md, In q, In pd, In W, Out v, Out g, Out H) {
+    nb::gil_scoped_release r;
+    rbd::batch::com_cost(md, rows(q), q.data(), pd.data(), W.data(), v.data(), g.data(), H.data());
+  });
+  m.def("momentum_cost", [](const Model& md, In q, In qd, In hd, In W, Out v, Out g, Out H) {
+    nb::gil_scoped_release r;
+    rbd::batch::momentum_cost(md, rows(q), q.data(), qd.data(), hd.data(), W.data(), v.data(), g.data(), H.data());
+  });
   m.def("log_barrier", [](In x, In lo, In hi, double mu, Out v, Out g, Out h, const std::string& xn) {
     nb::gil_scoped_release r;
     rbd::batch::log_barrier(rows(x), width(x), x.data(), lo.data(), hi.data(), mu, v.data(), g.data(), h.data(),

@@ -148,3 +148,41 @@ def test_cost_bad_input():
         rbd.ee_pos_cost(model.neutral(), np.zeros(3), np.ones(3), ee_joint_name="nope")
     with pytest.raises(ValueError, match="^ee_offset: expected shape"):
         rbd.ee_pos_cost(model.neutral(), np.zeros(3), np.ones(3), ee_offset=np.zeros(2))
+
+
+def test_com_cost(ref):
+    rbd = rbdkit.RBD(ref.model)
+    m = ref.model
+    rng = np.random.default_rng(5)
+    q, p_des, W = m.random_configuration(rng), rng.normal(size=3), rng.uniform(0.5, 2, 3)
+    v, g, H = rbd.com_cost(q, p_des, W)
+    c = pin.centerOfMass(ref.pin, ref.data, ref.q(q))
+    assert np.isclose(v, 0.5 * np.sum(W * (c - p_des) ** 2), rtol=1e-12)
+    cost = lambda qq: rbd.com_cost(qq, p_des, W)[0]
+    assert_close(g[:m.nv], tangent_fd(rbd, cost, q), "com grad", 1e-6)
+    J = rbd.jacobian_com(q)
+    assert_close(H[:m.nv, :m.nv], J.T @ np.diag(W) @ J, "com GN Hessian")
+
+
+def test_momentum_cost(ref):
+    rbd = rbdkit.RBD(ref.model)
+    m = ref.model
+    rng = np.random.default_rng(6)
+    q, qd = m.random_configuration(rng), rng.normal(size=m.nv)
+    h_des, W = rng.normal(size=6), rng.uniform(0.5, 2, 6)
+    v, g, H = rbd.momentum_cost(q, qd, h_des, W)
+    assert g.shape == (2 * m.nv,) and H.shape == (2 * m.nv, 2 * m.nv)
+    pin.computeCentroidalMomentum(ref.pin, ref.data, ref.q(q), ref.v(qd))
+    r = ref.data.hg.vector - h_des
+    assert np.isclose(v, 0.5 * np.sum(W * r * r), rtol=1e-12)
+    # exact gradient in [δq | δqd], by finite differences
+    cost_q = lambda qq: rbd.momentum_cost(qq, qd, h_des, W)[0]
+    assert_close(g[:m.nv], tangent_fd(rbd, cost_q, q), "momentum grad q", 1e-6)
+    fdv = np.array([(rbd.momentum_cost(q, qd + 1e-6 * e, h_des, W)[0] - rbd.momentum_cost(q, qd - 1e-6 * e, h_des,
+                                                                                         W)[0]) / 2e-6
+                    for e in np.eye(m.nv)])
+    assert_close(g[m.nv:], fdv, "momentum grad qd", 1e-6)
+    # Gauss–Newton Hessian from the full residual Jacobian J = [(dA/dq) qd | A]
+    A, _ = rbd.ccrba(q, qd)
+    J = np.hstack([np.einsum("rjk,j->rk", rbd.dccrba(q), qd), A])
+    assert_close(H, J.T @ np.diag(W) @ J, "momentum GN Hessian")
