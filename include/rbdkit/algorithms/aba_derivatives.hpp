@@ -50,38 +50,6 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
   }
 }
 
-// D (nv x nv) <- -M⁻¹ D for a D with the sparsity of an inverse-dynamics
-// derivative: D[k][c] = 0 unless the DoFs k and c lie on one path to the root.
-// Row k of D then only reaches the columns of k's subtree (a contiguous
-// range) and of k's ancestors, so each M⁻¹ column is spread over those alone.
-// After prepare_minv; mimic models (whose columns mix bodies) take apply_neg_minv.
-template <typename S> RBD_HD void apply_neg_minv_tree(const ModelView<S>& m, Workspace<S>& w, S* D) {
-  const int nv = m.nv;
-  if (m.has_mimic) {
-    apply_neg_minv(m, w, D, nv);
-    return;
-  }
-  const S* Mi = w.dense;
-  S* Dc = w.dense2;
-  for (int k = 0; k < nv * nv; ++k) Dc[k] = D[k], D[k] = S(0);
-  for (int b = 0; b < m.nb; ++b) {
-    const BodyDesc<S>& bb = m.body[b];
-    const int c0 = bb.v_idx, c1 = bb.v_idx + bb.nv_subtree;
-    for (int a = 0; a < bb.nv; ++a) {
-      const int k = bb.v_idx + a;
-      const S* Dk = Dc + k * nv;
-      const S* Mk = Mi + k * nv;  // column k of the symmetric M⁻¹
-      for (int r = 0; r < nv; ++r) {
-        const S coef = -Mk[r];
-        S* out = D + r * nv;
-        for (int c = c0; c < c1; ++c) out[c] += coef * Dk[c];
-        for (int j = bb.parent; j >= 0; j = m.body[j].parent)
-          for (int c = m.body[j].v_idx; c < m.body[j].v_idx + m.body[j].nv; ++c) out[c] += coef * Dk[c];
-      }
-    }
-  }
-}
-
 // qdd (nv), ∂qdd/∂q and ∂qdd/∂qd (nv x nv each). false if M is not PD.
 template <typename S>
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
@@ -89,8 +57,8 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   if (!aba(m, w, q, qd, tau, fext, gravity, qdd)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd);
   if (!prepare_minv(m, w, q)) return false;
-  apply_neg_minv_tree(m, w, dqdd_dq);
-  apply_neg_minv_tree(m, w, dqdd_dqd);
+  apply_neg_minv(m, w, dqdd_dq, m.nv);
+  apply_neg_minv(m, w, dqdd_dqd, m.nv);
   return true;
 }
 
