@@ -70,12 +70,7 @@ RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
   const int nv = m.nv, nb = m.nb;
   for (int k = 0; k < nb * nv * 6; ++k) dtau_dfext[k] = S(0);
   // world-frame subspace columns
-  for (int i = 0; i < nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
-    for (int k = 0; k < b.nv; ++k) w.Sw[6 * i + k] = w.Xw[i].act(joint_subspace_col(b, k));
-  }
+  for (int i = 0; i < nb; ++i) world_placement(m, w, q, i);
   // column k of J_b (body frame) = X_0b⁻¹ s_k for k on b's support
   for (int bb = 0; bb < nb; ++bb) {
     S* Jt = dtau_dfext + bb * nv * 6;

@@ -7,7 +7,7 @@
 // result is Gᵀ M_full G for the reduced-coordinate map G.
 #pragma once
 
-#include "../workspace.hpp"
+#include "world.hpp"
 
 namespace rbd {
 
@@ -20,9 +20,7 @@ namespace rbd {
 template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
-    for (int k = 0; k < b.nv; ++k) w.Sw[6 * i + k] = w.Xw[i].act(joint_subspace_col(b, k));
+    world_placement(m, w, q, i);
     w.Ic[i] = transform_inertia(w.Xw[i], b.I);
   }
 }

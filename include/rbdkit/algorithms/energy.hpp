@@ -53,16 +53,10 @@ template <typename S>
 RBD_HD void momentum_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    const int p = b.parent;
-    // X_0i = X_0λ X_λi, s = X_0i S
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = p >= 0 ? w.Xw[p] * w.X[i] : w.X[i];
-    Motion<S>* s = w.Sw + 6 * i;
-    for (int k = 0; k < b.nv; ++k) s[k] = w.Xw[i].act(joint_subspace_col(b, k));
-    // v_i = v_λ + s qd
-    Motion<S> v = p >= 0 ? w.v[p] : Motion<S>::zero();
-    for (int k = 0; k < b.nv; ++k) v += qd[b.v_idx + k] * s[k];
-    w.v[i] = v;
+    // X_0i = X_0λ X_λi, s = X_0i S, v_i = v_λ + s qd
+    world_placement(m, w, q, i);
+    world_motion(m, w, i, qd, static_cast<const S*>(nullptr), S(0), false, false);
+    const Motion<S>& v = w.v[i];
     // body inertia, momentum and inertia rate in the world frame
     w.Ic[i] = transform_inertia(w.Xw[i], b.I);
     w.h[i] = w.Ic[i] * v;

@@ -32,8 +32,7 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
   // body placements X_0i, articulated inertias start as the body inertias (world frame)
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    world_placement(m, w, q, i, false);
     w.IA[i] = Mat6<S>::from_inertia(transform_inertia(w.Xw[i], b.I));
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);

@@ -71,36 +71,8 @@ template <typename S>
 RBD_HD void regressor_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                    S gravity, bool sens) {
   for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    const int p = b.parent;
-    // placement and world-frame motion subspace
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = p >= 0 ? w.Xw[p] * w.X[i] : w.X[i];
-    Motion<S>* s = w.Sw + 6 * i;
-    for (int k = 0; k < b.nv; ++k) s[k] = w.Xw[i].act(joint_subspace_col(b, k));
-    // v_i = v_λ + s qd,  a_i = a_λ + s qdd + v_i × s qd
-    Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
-    if (p >= 0) {
-      vp = w.v[p];
-      ap = w.a[p];
-    } else {
-      ap.lin.z = -gravity;
-    }
-    Motion<S> vJ = Motion<S>::zero(), aJ = Motion<S>::zero();
-    for (int k = 0; k < b.nv; ++k) {
-      vJ += qd[b.v_idx + k] * s[k];
-      if (qdd) aJ += qdd[b.v_idx + k] * s[k];
-    }
-    w.v[i] = vp + vJ;
-    w.a[i] = ap + aJ + cross(w.v[i], vJ);
-    if (!sens) continue;
-    // column sensitivities: v_λ × s, a_λ × s + v_λ × (v_λ × s), v × s + v_λ × s
-    for (int k = 0; k < b.nv; ++k) {
-      const Motion<S> dv = cross(vp, s[k]);
-      w.dVdq[6 * i + k] = dv;
-      w.dAdq[6 * i + k] = cross(ap, s[k]) + cross(vp, dv);
-      w.dAdv[6 * i + k] = cross(w.v[i], s[k]) + dv;
-    }
+    world_placement(m, w, q, i);
+    world_motion(m, w, i, qd, qdd, gravity, true, sens);
   }
 }
 
@@ -283,9 +255,7 @@ RBD_HD void kinetic_energy_regressor(const ModelView<S>& m, Workspace<S>& w, con
 template <typename S>
 RBD_HD void potential_energy_regressor(const ModelView<S>& m, Workspace<S>& w, const S* q, S gravity, S* y) {
   for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    world_placement(m, w, q, i, false);
     const Transform<S>& X = w.Xw[i];
     S* o = y + 10 * i;
     o[0] = -gravity * X.p.z;

@@ -20,7 +20,7 @@
 // add their terms into their target's column (the reduced derivative).
 #pragma once
 
-#include "../workspace.hpp"
+#include "world.hpp"
 
 namespace rbd {
 
@@ -62,34 +62,9 @@ RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w
                                           const S* qdd, const S* fext, S gravity) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    const int p = b.parent;
-    // placement and world-frame motion subspace
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = p >= 0 ? w.Xw[p] * w.X[i] : w.X[i];
-    Motion<S>* s = w.Sw + 6 * i;
-    for (int k = 0; k < b.nv; ++k) s[k] = w.Xw[i].act(joint_subspace_col(b, k));
-    // v_i = v_λ + s qd,  a_i = a_λ + s qdd + v_i × s qd
-    Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
-    if (p >= 0) {
-      vp = w.v[p];
-      ap = w.a[p];
-    } else {
-      ap.lin.z = -gravity;
-    }
-    Motion<S> vJ = Motion<S>::zero(), aJ = Motion<S>::zero();
-    for (int k = 0; k < b.nv; ++k) {
-      vJ += qd[b.v_idx + k] * s[k];
-      if (qdd) aJ += qdd[b.v_idx + k] * s[k];
-    }
-    w.v[i] = vp + vJ;
-    w.a[i] = ap + aJ + cross(w.v[i], vJ);
-    // column sensitivities
-    for (int k = 0; k < b.nv; ++k) {
-      const Motion<S> dv = cross(vp, s[k]);
-      w.dVdq[6 * i + k] = dv;
-      w.dAdq[6 * i + k] = cross(ap, s[k]) + cross(vp, dv);
-      w.dAdv[6 * i + k] = cross(w.v[i], s[k]) + dv;
-    }
+    // placement, world-frame subspace, velocity, acceleration, column sensitivities
+    world_placement(m, w, q, i);
+    world_motion(m, w, i, qd, qdd, gravity, true, true);
     // body inertia, momentum and net force in the world frame
     const Inertia<S> oI = transform_inertia(w.Xw[i], b.I);
     w.Ic[i] = oI;
