@@ -13,11 +13,12 @@ from ._checks import Batch, check_choice, check_scalar
 from ._derivatives import DerivativesMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
+from ._second_order import SecondOrderMixin
 
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin):
+class RBD(DerivativesMixin, KinematicsMixin, SecondOrderMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

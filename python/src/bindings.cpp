@@ -23,6 +23,7 @@ void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 using rbd::Model;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
+void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
@@ -186,4 +187,5 @@ NB_MODULE(_core, m) {
         "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
 
   bind_kinematics(m);
+  bind_second_order(m);
 }

@@ -44,6 +44,10 @@ METHODS = {
     "inverse_dynamics_gradient_fpass_dqd": ("q", "qd", "qdd"),
     "inverse_dynamics_gradient_bpass_dq": ("q", "qd", "qdd", "dV_dq", "dA_dq"),
     "inverse_dynamics_gradient_bpass_dqd": ("q", "qd", "qdd", "S", "dA_dqd"),
+    "idsva_so_body_frame": ("q", "qd", "qdd"),
+    "idsva_so_world_frame": ("q", "qd", "qdd"),
+    "idsva_so": ("q", "qd", "qdd"),
+    "fdsva_so": ("q", "qd", "u"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
@@ -58,7 +62,8 @@ OPTIONAL = {("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", 
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
-                "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd")
+                "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd",
+                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
