@@ -29,13 +29,18 @@ def state(model, seed=4, vscale=2.0):
             rng.uniform(-30, 30, model.nv))
 
 
-def fd_tangent(rbd, f, q, eps=1e-5):
-    """central differences of f along q <- integrate(q, ±eps e_k), stacked on a last axis k"""
+def fd_tangent(rbd, f, q, eps=1e-3):
+    """five-point central differences (error O(eps⁴)) of f along q <- integrate(q, t e_k),
+    t = ±eps, ±2 eps, stacked on a last axis k. The fourth-order stencil lets the step
+    stay large, which keeps the rounding of the first-order results (amplified by
+    M⁻¹ in forward dynamics) well below the 1e-6 tolerance."""
     cols = []
     for k in range(rbd.nv):
         d = np.zeros(rbd.nv)
         d[k] = eps
-        cols.append((f(rbd.integrate(q, d)) - f(rbd.integrate(q, -d))) / (2 * eps))
+        f1 = f(rbd.integrate(q, d)) - f(rbd.integrate(q, -d))
+        f2 = f(rbd.integrate(q, 2 * d)) - f(rbd.integrate(q, -2 * d))
+        cols.append((8 * f1 - f2) / (12 * eps))
     return np.stack(cols, axis=-1)
 
 
@@ -101,10 +106,10 @@ def test_idsva_so_by_finite_differences(model):
     grad = lambda qq, vv, aa: rbd.inverse_dynamics_gradient(qq, vv, aa, gravity=g)
     # ∂/∂q_k of ∂tau/∂q (tangent steps through integrate)
     assert_close(d2q, fd_tangent(rbd, lambda qq: grad(qq, qd, qdd)[:, :nv], q), "d2tau_dq2 vs FD", 1e-6)
-    # qd: ∂tau/∂qd is linear in qd, so differences are exact up to rounding
-    assert_close(d2v, fd_vector(lambda v: grad(q, v, qdd)[:, nv:], qd, 1e-4), "d2tau_dqd2 vs FD", 1e-6)
+    # qd: tau is quadratic in qd, so qd differences are exact up to rounding at any step
+    assert_close(d2v, fd_vector(lambda v: grad(q, v, qdd)[:, nv:], qd, 0.1), "d2tau_dqd2 vs FD", 1e-6)
     # the cross term both ways: ∂/∂qd_k of ∂tau/∂q_j and ∂/∂q_j of ∂tau/∂qd_k
-    assert_close(d2qv, fd_vector(lambda v: grad(q, v, qdd)[:, :nv], qd, 1e-4), "d2tau_dqdqd vs FD in qd", 1e-6)
+    assert_close(d2qv, fd_vector(lambda v: grad(q, v, qdd)[:, :nv], qd, 0.1), "d2tau_dqdqd vs FD in qd", 1e-6)
     assert_close(d2qv, fd_tangent(rbd, lambda qq: grad(qq, qd, qdd)[:, nv:], q).transpose(0, 2, 1),
                  "d2tau_dqdqd vs FD in q", 1e-6)
     # ∂M/∂q from crba, and as ∂/∂qdd_j of ∂tau/∂q_k
@@ -119,12 +124,13 @@ def test_fdsva_so_by_finite_differences(model):
     g = -4.0
     d2q, d2v, d2qv, d2qu = rbd.fdsva_so(q, qd, u, gravity=g)
     grad = lambda qq, vv, uu: rbd.forward_dynamics_gradient(qq, vv, uu, gravity=g)
+    # qd and u steps are exact up to rounding (qdd is quadratic in qd, linear in u)
     assert_close(d2q, fd_tangent(rbd, lambda qq: grad(qq, qd, u)[0], q), "d2qdd_dq2 vs FD", 1e-6)
-    assert_close(d2v, fd_vector(lambda v: grad(q, v, u)[1], qd, 1e-4), "d2qdd_dqd2 vs FD", 1e-6)
-    assert_close(d2qv, fd_vector(lambda v: grad(q, v, u)[0], qd, 1e-4), "d2qdd_dqdqd vs FD in qd", 1e-6)
+    assert_close(d2v, fd_vector(lambda v: grad(q, v, u)[1], qd, 0.1), "d2qdd_dqd2 vs FD", 1e-6)
+    assert_close(d2qv, fd_vector(lambda v: grad(q, v, u)[0], qd, 0.1), "d2qdd_dqdqd vs FD in qd", 1e-6)
     assert_close(d2qv, fd_tangent(rbd, lambda qq: grad(qq, qd, u)[1], q).transpose(0, 2, 1),
                  "d2qdd_dqdqd vs FD in q", 1e-6)
-    assert_close(d2qu, fd_vector(lambda uu: grad(q, qd, uu)[0], u, 1e-3), "d2qdd_dqdu vs FD", 1e-6)
+    assert_close(d2qu, fd_vector(lambda uu: grad(q, qd, uu)[0], u, 1.0), "d2qdd_dqdu vs FD", 1e-6)
     # ∂qdd/∂u = M⁻¹ does not depend on qd or u: ∂²qdd/∂q∂u is also ∂M⁻¹/∂q
     assert_close(d2qu, fd_tangent(rbd, rbd.minv, q).transpose(0, 2, 1), "d2qdd_dqdu vs FD of minv", 1e-6)
 
