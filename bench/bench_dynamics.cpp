@@ -146,8 +146,8 @@ void idsva_so_call(Robot& r, int variant) {
     rbd::idsva_so(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), kGravity, t, t + n3, t + 2 * n3, t + 3 * n3);
 }
 
-// the four tensors against Pinocchio's: rbdkit [i][j][k] row-major; Pinocchio's
-// d2tau_dqdv(i, a, b) = ∂²tau_i/∂v_a∂q_b is rbdkit's d2tau_dqdqd[i][b][a]
+// the four tensors against Pinocchio's (same index order: rbdkit row-major
+// [i][j][k] arrays, Pinocchio Eigen tensors (i, j, k)); max |difference|
 double compare_so(Robot& r) {
   const int n = r.nv();
   const long n3 = static_cast<long>(n) * n * n;
@@ -159,7 +159,7 @@ double compare_so(Robot& r) {
         const long x = (static_cast<long>(i) * n + j) * n + k;
         e = std::max(e, std::abs(r.so[x] - d.d2tau_dqdq(i, j, k)));
         e = std::max(e, std::abs(r.so[n3 + x] - d.d2tau_dvdv(i, j, k)));
-        e = std::max(e, std::abs(r.so[2 * n3 + x] - d.d2tau_dqdv(i, k, j)));
+        e = std::max(e, std::abs(r.so[2 * n3 + x] - d.d2tau_dqdv(i, j, k)));
         e = std::max(e, std::abs(r.so[3 * n3 + x] - d.d2tau_dadq(i, j, k)));
       }
   return e;

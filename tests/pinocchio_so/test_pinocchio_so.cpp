@@ -12,9 +12,9 @@
 //
 // Conventions matched: d2tau_dqdq(i, j, k) and rbdkit's d2tau_dq2[i, j, k] are
 // both ∂/∂q_k(∂tau_i/∂q_j) in the tangent space (k the outer derivative, also
-// inside free-flyer and spherical joints); Pinocchio's d2tau_dqdv(i, a, b) is
-// ∂²tau_i/∂v_a∂q_b = rbdkit's d2tau_dqdqd[i, b, a]; d2tau_dvdv and
-// d2tau_dadq (= ∂M_ij/∂q_k) index alike. Floating bases included.
+// inside free-flyer and spherical joints); d2tau_dvdv, d2tau_dqdv
+// (∂²tau_i/∂q_j∂v_k) and d2tau_dadq (∂M_ij/∂q_k) index like rbdkit's
+// d2tau_dqd2, d2tau_dqdqd and dM_dq. Floating bases included.
 //
 //   test_pinocchio_so <robots dir> <test urdf dir>    exit 0: all agree
 #include <cmath>
@@ -61,7 +61,8 @@ PinModel to_pinocchio(const rbd::Model& m) {
       default: id = out.model.addJoint(parent, pinocchio::JointModelFreeFlyer(), placement, name); break;
     }
     // rbdkit: mass, first moment m·c, inertia about the body origin; Pinocchio: about the centre of mass
-    const Eigen::Vector3d c = b.I.m > 0 ? Eigen::Vector3d(b.I.h.x, b.I.h.y, b.I.h.z) / b.I.m : Eigen::Vector3d::Zero();
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    if (b.I.m > 0) c = Eigen::Vector3d(b.I.h.x, b.I.h.y, b.I.h.z) / b.I.m;
     Eigen::Matrix3d Io;
     for (int r = 0; r < 3; ++r)
       for (int k = 0; k < 3; ++k) Io(r, k) = b.I.I(r, k);
@@ -93,17 +94,15 @@ Eigen::VectorXd pin_v(const PinModel& pm, const std::vector<double>& v) {
   return out;
 }
 
-// Gᵀ-contraction of a Pinocchio tensor on every index, into rbdkit's [i][j][k]
-// order; swap: read T(i, k, j) (for d2tau_dqdv)
-std::vector<double> reduce(const PinModel& pm, int nv, const pinocchio::Data::Tensor3x& T, bool swap) {
+// Gᵀ-contraction of a Pinocchio tensor on every index, into rbdkit's [i][j][k] array
+std::vector<double> reduce(const PinModel& pm, int nv, const pinocchio::Data::Tensor3x& T) {
   std::vector<double> out(static_cast<size_t>(nv) * nv * nv, 0.0);
   const int n = pm.model.nv;
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
       for (int k = 0; k < n; ++k) {
-        const double x = swap ? T(i, k, j) : T(i, j, k);
         out[(static_cast<size_t>(pm.col[i]) * nv + pm.col[j]) * nv + pm.col[k]] +=
-            pm.factor[i] * pm.factor[j] * pm.factor[k] * x;
+            pm.factor[i] * pm.factor[j] * pm.factor[k] * T(i, j, k);
       }
   return out;
 }
@@ -154,10 +153,8 @@ int main(int argc, char** argv) {
 
         // Pinocchio, reduced to rbdkit's coordinates
         pinocchio::ComputeRNEASecondOrderDerivatives(pm.model, pdata, pin_q(m, pm, q), pin_v(pm, qd), pin_v(pm, qdd));
-        const std::vector<double> ref[4] = {reduce(pm, nv, pdata.d2tau_dqdq, false),
-                                            reduce(pm, nv, pdata.d2tau_dvdv, false),
-                                            reduce(pm, nv, pdata.d2tau_dqdv, true),
-                                            reduce(pm, nv, pdata.d2tau_dadq, false)};
+        const std::vector<double> ref[4] = {reduce(pm, nv, pdata.d2tau_dqdq), reduce(pm, nv, pdata.d2tau_dvdv),
+                                            reduce(pm, nv, pdata.d2tau_dqdv), reduce(pm, nv, pdata.d2tau_dadq)};
         for (int variant = 0; variant < 2; ++variant) {
           std::vector<double> T[4];
           for (auto& t : T) t.resize(n3);
