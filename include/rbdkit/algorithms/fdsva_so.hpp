@@ -39,17 +39,31 @@ template <typename S> RBD_HD void so_transpose_times(int nv, const S* A, const S
     }
 }
 
-// X (nv x nv², row i the flattened (j, k) slice) <- -M⁻¹ X, nv columns at a
-// time through blk (nv x nv), after prepare_minv (w.dense)
+// X (nv x nv², row i the flattened (j, k) slice) <- -M⁻¹ X, after
+// prepare_minv (w.dense). Columns (j, k) that are exactly zero stay zero
+// (pairs j, k on different branches: no triple on one root path); the others
+// go through blk (nv x nv) up to nv at a time. Uses w.so_i for their indices.
 template <typename S> RBD_HD void so_apply_neg_minv(const ModelView<S>& m, Workspace<S>& w, S* X, S* blk) {
   const int nv = m.nv;
   const long nn = static_cast<long>(nv) * nv;
-  for (int b = 0; b < nv; ++b) {
+  int* cols = w.so_i;  // (nv) the columns in blk
+  int n = 0;
+  for (long c = 0; c <= nn; ++c) {
+    if (c < nn) {
+      bool zero = true;
+      for (int r = 0; r < nv && zero; ++r) zero = so_skippable(X[r * nn + c]);
+      if (zero) continue;
+      cols[n++] = static_cast<int>(c);
+      if (n < nv) continue;
+    }
+    if (n == 0) continue;
+    // blk (nv x n) <- the n columns, -M⁻¹ blk, back
     for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) blk[r * nv + c] = X[r * nn + b * nv + c];
-    apply_neg_minv(m, w, blk, nv);
+      for (int e = 0; e < n; ++e) blk[r * n + e] = X[r * nn + cols[e]];
+    apply_neg_minv(m, w, blk, n);
     for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) X[r * nn + b * nv + c] = blk[r * nv + c];
+      for (int e = 0; e < n; ++e) X[r * nn + cols[e]] = blk[r * n + e];
+    n = 0;
   }
 }
 

@@ -115,28 +115,28 @@ RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const I
       cf[8 * x + 7] = S(-1) * cross(sd, cf[8 * x]);
     }
 
-    // row d: pairs (j, k) of path DoFs, k at or above j
-    for (int j = 0; j < n; ++j) {
-      const Motion<S>* mj = cm + 4 * j;
-      const Force<S>* fj = cf + 8 * j;
+    // row d: pairs (j, k) of path DoFs, k at or above j (path entries run
+    // from c up, so k starts at the first DoF of j's joint)
+    for (int j = 0, j0 = 0; j < n; ++j) {
       const int cj = ci[2 * j], dj = ci[2 * j + 1];
-      for (int k = 0; k < n; ++k) {
-        const int dk = ci[2 * k + 1];
-        if (dk < dj) continue;
+      if (j > 0 && ci[2 * j - 1] != dj) j0 = j;
+      // local copies: the tensor stores below could alias the path arrays
+      const Motion<S> sj = cm[4 * j];
+      const Force<S> alpha = cf[8 * j + 4], beta = cf[8 * j + 5], mu_nu = cf[8 * j + 6], gamma = cf[8 * j + 7];
+      for (int k = j0; k < n; ++k) {
         const Motion<S>* mk = cm + 4 * k;
-        const Force<S>* fk = cf + 8 * k;
-        const int ck = ci[2 * k];
-        const S qq = dot(mk[2], fj[4]) + dot(mk[1], fj[5]);
-        S vv = dot(mk[0], fj[7]) + dot(mj[0], fk[7]);
+        const int ck = ci[2 * k], dk = ci[2 * k + 1];
+        const S qq = dot(mk[2], alpha) + dot(mk[1], beta);
+        S vv = dot(mk[0], gamma) + dot(sj, cf[8 * k + 7]);
         d2q[at(d, cj, ck)] += qq;
         if (dk == dj) {  // one joint: the ordered pair as it comes
-          d2qv[at(d, cj, ck)] += dot(mk[0], fj[6]);
+          d2qv[at(d, cj, ck)] += dot(mk[0], mu_nu);
           d2v[at(d, cj, ck)] += vv;
         } else {  // k strictly above j: both orders
-          vv += dot(mk[0], fj[4]);
+          vv += dot(mk[0], alpha);
           d2q[at(d, ck, cj)] += qq;
-          d2qv[at(d, cj, ck)] += dot(mk[3], fj[4]) + dot(mk[0], fj[5]);
-          d2qv[at(d, ck, cj)] += dot(mj[0], fk[6]);
+          d2qv[at(d, cj, ck)] += dot(mk[3], alpha) + dot(mk[0], beta);
+          d2qv[at(d, ck, cj)] += dot(sj, cf[8 * k + 6]);
           d2v[at(d, cj, ck)] += vv;
           d2v[at(d, ck, cj)] += vv;
         }
@@ -145,8 +145,9 @@ RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const I
 
     // rows i above c, with d in a column
     for (int i = n_c; i < n; ++i) {
-      const Motion<S>& si = cm[4 * i];
+      const Motion<S> si = cm[4 * i];
       const Force<S>* fi = cf + 8 * i;
+      const Force<S> alpha = fi[4];
       const int ri = ci[2 * i], di = ci[2 * i + 1];
       const Motion<S> wi = cross(si, sd);
       const Force<S> Iw = Ic * wi;
@@ -157,8 +158,8 @@ RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const I
       const Force<S> b = Bw_wh + cross(sd, fi[2] - fi[3]) + nu + mu;
       const Force<S> rho = cross(si, Phi);
       const Force<S> omg = cross(si, Omg);
-      const Force<S> a_alpha = a - fi[4];    // qv with q above, and qd (both above)
-      const Force<S> Iw_alpha = Iw - fi[4];  // qd, the other column at c
+      const Force<S> a_alpha = a - alpha;    // qv with q above, and qd (both above)
+      const Force<S> Iw_alpha = Iw - alpha;  // qd, the other column at c
       const Force<S> qv_c = mu - nu + Bw_wh;  // qv, the qd column at c
       for (int k = 0; k < n; ++k) {
         const Motion<S>* mk = cm + 4 * k;
@@ -184,7 +185,7 @@ RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const I
         }
         // ∂M_id/∂q_k = ∂M_di/∂q_k for k strictly below i
         if (i_above_k) {
-          const S m = -dot(mk[0], fi[4]);
+          const S m = -dot(mk[0], alpha);
           dM[at(ri, d, ck)] += m;
           dM[at(d, ri, ck)] += m;
         }
