@@ -77,7 +77,14 @@ RBD_HD void so_path_push(Workspace<S>& w, int& n, int col, int depth, const Moti
 //   b_i = Bc w_i - w_i ×* hc + s_d ×* (Bc s_i - s_i ×* hc) + ψ̇_d ×* Ic s_i + Ic(s_i × ψ̇_d) - s_i ×* Ic ψ̇_d
 //   Φ_d = s_d ×* Fc + Ic ψ̈_d + Bc ψ̇_d + ψ̇_d ×* hc   (∂Fc/∂q_d),   ρ_i = s_i ×* Φ_d
 //   Ω_d = Ic σ_d + Bc s_d + s_d ×* hc                 (∂Fc/∂qd_d),  ω_i = s_i ×* Ω_d
-// and the qd, cross and mass-matrix terms from the same forces (below).
+// and from the same forces (μ'_i = Ic(s_i × ψ̇_d) - s_i ×* Ic ψ̇_d, ν'_i = ψ̇_d ×* Ic s_i):
+//   d2v[d,j,k]  = s_k·γ_j + s_j·γ_k + [k strictly above j] s_k·α_j
+//   d2v[i,d,k]  = d2v[i,k,d] = s_k·(a_i - α_i) (k above c),  s_k·(Ic w_i - α_i) (k at c)
+//   d2qv[d,j,k] = σ_k·α_j + s_k·β_j (k strictly above j),  s_k·(μ_j - ν_j) (otherwise)
+//   d2qv[i,d,k] = σ_k·a_i + s_k·b_i (k above c),  s_k·(μ'_i - ν'_i + Bc w_i - w_i ×* hc) + σ_k·Ic w_i (k at c)
+//   d2qv[i,k,d] = ψ̇_k·(a_i - α_i) - [i above k] s_k·ω_i  (k above c)
+//   dM[i,k,d]   = s_k·a_i (i, k above c),   dM[i,d,k] = dM[d,i,k] = -s_k·α_i (k strictly below i)
+// (dM is zero when i and j are both DoFs of c, or k is at or above both).
 template <typename S>
 RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const Inertia<S>& Ic, const Mat6<S>& Bc,
                                 const Force<S>& hc, const Force<S>& Fc, S* d2q, S* d2v, S* d2qv, S* dM) {
