@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: installs what is needed, builds the C++ library, its tests and
 # the CUDA kernel check (nvcc), runs ctest, builds the Python package and
-# runs pytest (Pinocchio equivalence included; nothing is skipped).
+# runs pytest (Pinocchio equivalence included; nothing is skipped), then the
+# comparison with Pinocchio's C++ second-order derivatives (tests/pinocchio_so).
 set -euo pipefail
 cd "$(dirname "$0")"
 bash scripts/setup.sh --test
@@ -29,3 +30,7 @@ cmake --build build/sanitize -j "$JOBS"
 echo "building the Python package (pip install .) ..."
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation .
 "$PY" -m pytest -q -p no:cacheprovider tests/python
+
+# ---- second-order derivatives against Pinocchio's C++ library (not in its
+# Python module): one program built against the `pin` wheel (build/pinocchio_so)
+JOBS="$JOBS" PYTHON="$PY" tests/pinocchio_so/run.sh

@@ -34,6 +34,7 @@
 
 #include <Eigen/Core>
 #include <rbdkit/algorithms/aba_derivatives.hpp>
+#include <rbdkit/algorithms/fdsva_so.hpp>
 #include <rbdkit/dynamics.hpp>
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
@@ -41,6 +42,7 @@
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/rnea-derivatives.hpp>
+#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -81,6 +83,7 @@ struct Robot {
   std::vector<double> out;   // nv x nv, rbdkit's output of every operation
   std::vector<double> out2;  // nv x nv, the second matrix of the derivatives
   std::vector<double> acc;   // nv, the forward-dynamics acceleration of aba_derivatives
+  std::vector<double> so;    // 4 x nv³, the second-order tensors (idsva_so, fdsva_so)
 
   pinocchio::Model pmodel;
   std::unique_ptr<pinocchio::Data> pdata;
@@ -127,6 +130,39 @@ template <typename M> double max_abs_diff_rowmajor(const std::vector<double>& a,
   for (long i = 0; i < n; ++i)
     for (long j = 0; j < n; ++j) d = std::max(d, std::abs(a[i * n + j] - P(i, j)));
   return d;
+}
+
+// rbdkit's second-order inverse dynamics into r.so; variant 0 body frame, 1 world frame, 2 idsva_so's choice
+void idsva_so_call(Robot& r, int variant) {
+  const long n3 = static_cast<long>(r.nv()) * r.nv() * r.nv();
+  double* t = r.so.data();
+  if (variant == 0)
+    rbd::idsva_so_body_frame(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), kGravity, t, t + n3, t + 2 * n3,
+                             t + 3 * n3);
+  else if (variant == 1)
+    rbd::idsva_so_world_frame(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), kGravity, t, t + n3, t + 2 * n3,
+                              t + 3 * n3);
+  else
+    rbd::idsva_so(r.mv, *r.w, r.q.data(), r.qd.data(), r.qdd.data(), kGravity, t, t + n3, t + 2 * n3, t + 3 * n3);
+}
+
+// the four tensors against Pinocchio's (same index order: rbdkit row-major
+// [i][j][k] arrays, Pinocchio Eigen tensors (i, j, k)); max |difference|
+double compare_so(Robot& r) {
+  const int n = r.nv();
+  const long n3 = static_cast<long>(n) * n * n;
+  const pinocchio::Data& d = *r.pdata;
+  double e = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      for (int k = 0; k < n; ++k) {
+        const long x = (static_cast<long>(i) * n + j) * n + k;
+        e = std::max(e, std::abs(r.so[x] - d.d2tau_dqdq(i, j, k)));
+        e = std::max(e, std::abs(r.so[n3 + x] - d.d2tau_dvdv(i, j, k)));
+        e = std::max(e, std::abs(r.so[2 * n3 + x] - d.d2tau_dqdv(i, j, k)));
+        e = std::max(e, std::abs(r.so[3 * n3 + x] - d.d2tau_dadq(i, j, k)));
+      }
+  return e;
 }
 
 std::vector<Operation> operations() {
@@ -179,6 +215,29 @@ std::vector<Operation> operations() {
                  [](Robot& r) { pinocchio::computeABADerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.tau)); },
                  [](Robot& r) { return std::max(max_abs_diff_rowmajor(r.out, r.pdata->ddq_dq),
                                                 max_abs_diff_rowmajor(r.out2, r.pdata->ddq_dv)); }});
+
+  // ---- second-order derivatives: four (nv x nv x nv) tensors on both sides
+  // (Pinocchio's ComputeRNEASecondOrderDerivatives is not instantiated in its
+  // shared library: compiled here, like rbdkit). rbdkit's idsva_so picks the
+  // body-frame recursion for a fixed base, the world-frame one for a floating base.
+  auto pin_so = [](Robot& r) {
+    pinocchio::ComputeRNEASecondOrderDerivatives(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.qdd));
+  };
+  ops.push_back({"idsva_so", "d2 tau / d(q, qd)^2, dM/dq (Pinocchio: ComputeRNEASecondOrderDerivatives)",
+                 [](Robot& r) { idsva_so_call(r, 2); }, pin_so, compare_so});
+  ops.push_back({"idsva_so_body", "the same, rbdkit's body-frame recursion", [](Robot& r) { idsva_so_call(r, 0); },
+                 pin_so, compare_so});
+  ops.push_back({"idsva_so_world", "the same, rbdkit's world-frame recursion", [](Robot& r) { idsva_so_call(r, 1); },
+                 pin_so, compare_so});
+  // no Pinocchio counterpart (its C++ library has no second-order forward dynamics)
+  ops.push_back({"fdsva_so", "d2 qdd / d(q, qd, u)^2 at qdd = FD(q, qd, tau)",
+                 [](Robot& r) {
+                   const long n3 = static_cast<long>(r.nv()) * r.nv() * r.nv();
+                   double* t = r.so.data();
+                   rbd::fdsva_so(r.mv, *r.w, r.q.data(), r.qd.data(), r.tau.data(), kGravity, t, t + n3, t + 2 * n3,
+                                 t + 3 * n3);
+                 },
+                 nullptr, nullptr});
   return ops;
 }
 
@@ -197,6 +256,7 @@ std::unique_ptr<Robot> load_robot(const std::string& dir, const std::string& urd
   r->out.assign(static_cast<size_t>(r->model.nv) * r->model.nv, 0.0);
   r->out2.assign(r->out.size(), 0.0);
   r->acc.assign(r->model.nv, 0.0);
+  r->so.assign(4ul * r->model.nv * r->model.nv * r->model.nv, 0.0);
 
   if (floating)
     pinocchio::urdf::buildModel(path, pinocchio::JointModelFreeFlyer(), r->pmodel);
@@ -244,7 +304,8 @@ bool check_agreement(std::vector<std::unique_ptr<Robot>>& robots, const std::vec
   bool ok = true;
   std::fprintf(stderr, "operations:\n");
   for (const Operation& op : ops)
-    std::fprintf(stderr, "  %-17s %s%s\n", op.name.c_str(), op.note.c_str(), op.rbdkit ? "" : " [Pinocchio alone]");
+    std::fprintf(stderr, "  %-17s %s%s\n", op.name.c_str(), op.note.c_str(),
+                 op.rbdkit ? (op.pinocchio ? "" : " [rbdkit alone]") : " [Pinocchio alone]");
   std::fprintf(stderr, "agreement check at the benchmarked state, max |rbdkit - Pinocchio| (tolerance %.0e%s):\n",
                kTolerance, ", enforced for fixed-base robots");
   for (auto& rp : robots) {

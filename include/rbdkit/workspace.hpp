@@ -29,6 +29,12 @@ template <typename S> struct Workspace {
   S* u;              // (nv)        aba: u = tau - Sᵀ·pA
   S* F;              // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
   S* P;              // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame
+  // ---- second order (algorithms/idsva_so.hpp, fdsva_so.hpp); nc = nv + nb bounds the joint DoFs
+  // on one root path (a mimic body adds a DoF of its own there)
+  Motion<S>* so_m;   // (nc x 4)    idsva_so: s, ψ̇, ψ̈, σ of the DoFs from the current body to the root, its frame
+  Force<S>* so_f;    // (nc x 8)    idsva_so: their products with the current body's composites, and per-DoF terms
+  int* so_i;         // (nc x 2)    idsva_so: column and depth below the current body of each of those DoFs
+  S* so_dense;       // (4 nv² + nv) fdsva_so: ∂qdd/∂q, ∂qdd/∂qd, M⁻¹, a block, qdd
   S* dense;          // (nv x nv + 2 nv) dense path (mimic models) and solves
   S* dense2;         // (nv x max(nv, 6)) aba_derivatives: a copy of the matrix M⁻¹ multiplies
 };
@@ -56,6 +62,10 @@ template <typename S> RBD_HD unsigned long workspace_bytes(int nb, int nv) {
   add(sizeof(S) * nv);
   add(sizeof(S) * 6 * nv);
   add(sizeof(S) * 6 * nv * nb);
+  add(sizeof(Motion<S>) * 4 * (nv + nb));
+  add(sizeof(Force<S>) * 8 * (nv + nb));
+  add(sizeof(int) * 2 * (nv + nb));
+  add(sizeof(S) * (4 * nv * nv + nv));
   add(sizeof(S) * (nv * nv + 2 * nv));
   add(sizeof(S) * nv * (nv > 6 ? nv : 6));
   return n;
@@ -90,6 +100,10 @@ template <typename S> RBD_HD Workspace<S> carve_workspace(void* buffer, int nb, 
   w.u = static_cast<S*>(take(sizeof(S) * nv));
   w.F = static_cast<S*>(take(sizeof(S) * 6 * nv));
   w.P = static_cast<S*>(take(sizeof(S) * 6 * nv * nb));
+  w.so_m = static_cast<Motion<S>*>(take(sizeof(Motion<S>) * 4 * (nv + nb)));
+  w.so_f = static_cast<Force<S>*>(take(sizeof(Force<S>) * 8 * (nv + nb)));
+  w.so_i = static_cast<int*>(take(sizeof(int) * 2 * (nv + nb)));
+  w.so_dense = static_cast<S*>(take(sizeof(S) * (4 * nv * nv + nv)));
   w.dense = static_cast<S*>(take(sizeof(S) * (nv * nv + 2 * nv)));
   w.dense2 = static_cast<S*>(take(sizeof(S) * nv * (nv > 6 ? nv : 6)));
   return w;

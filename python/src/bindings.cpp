@@ -27,6 +27,7 @@ using rbd::Model;
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
 void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
+void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
@@ -196,4 +197,5 @@ NB_MODULE(_core, m) {
   bind_kinematics(m);
   bind_regressor(m);
   bind_centroidal(m);
+  bind_second_order(m);
 }

@@ -65,6 +65,10 @@ METHODS = {
     "cmm_time_variation_fd": ("q", "qd"),
     "centroidal_momentum_time_variation": ("q", "qd", "qdd"),
     "centroidal_dynamics_derivatives": ("q", "qd", "qdd"),
+    "idsva_so_body_frame": ("q", "qd", "qdd"),
+    "idsva_so_world_frame": ("q", "qd", "qdd"),
+    "idsva_so": ("q", "qd", "qdd"),
+    "fdsva_so": ("q", "qd", "u"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
@@ -83,7 +87,8 @@ WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_grav
                 "inverse_dynamics_gradient_bpass_dq", "inverse_dynamics_gradient_bpass_dqd",
                 "inverse_dynamics_regressor", "inverse_dynamics_regressor_gradient",
                 "forward_dynamics_parameter_gradient", "potential_energy_regressor", "potential_energy",
-                "mechanical_energy")
+                "mechanical_energy",
+                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 

@@ -1,0 +1,122 @@
+// rbdkit/algorithms/fdsva_so.hpp — second-order partial derivatives of
+// forward dynamics qdd = FD(q, qd, u), from IDSVA-SO and M⁻¹ (the FDSVA-SO
+// relations of Singh, Russell & Wensing).
+//
+// Differentiating ID(q, qd, FD(q, qd, u)) = u twice, with every ID term taken
+// at qdd = FD(q, qd, u), ∂qdd/∂q = -M⁻¹ ∂ID/∂q, ∂qdd/∂qd = -M⁻¹ ∂ID/∂qd,
+// ∂qdd/∂u = M⁻¹ and ∂M/∂q_j = dM_dq[:, :, j]:
+//   d2qdd_dq2  [:, j, k] = -M⁻¹ (d2tau_dq2[:, j, k] + ∂M/∂q_j ∂qdd/∂q_k + ∂M/∂q_k ∂qdd/∂q_j)
+//   d2qdd_dqd2 [:, j, k] = -M⁻¹ d2tau_dqd2[:, j, k]
+//   d2qdd_dqdqd[:, j, k] = -M⁻¹ (d2tau_dqdqd[:, j, k] + ∂M/∂q_j ∂qdd/∂qd_k)
+//   d2qdd_dqdu [:, j, k] = -M⁻¹ ∂M/∂q_j M⁻¹[:, k]
+// (∂qdd/∂q_k as a column; index order and the tangent convention as in
+// idsva_so.hpp: [i, j, k], k the outer derivative). ∂²qdd/∂u², ∂²qdd/∂qd∂u
+// are zero. Each output is (nv x nv x nv) row-major. O(nv⁴) for the products
+// with M⁻¹ (the zero entries of ∂M/∂q are skipped).
+#pragma once
+
+#include "aba_derivatives.hpp"
+#include "idsva_so.hpp"
+
+namespace rbd {
+
+// an exact zero that may be skipped in a product (never for dual numbers,
+// whose derivative part may be nonzero)
+template <typename S> RBD_HD bool so_skippable(const S&) { return false; }
+RBD_HD bool so_skippable(double x) { return x == 0.0; }
+RBD_HD bool so_skippable(float x) { return x == 0.0f; }
+
+// R (nv x nv) = Aᵀ G: R[j][k] = Σ_m A[m][j] G[m][k], A = one row i of ∂M/∂q (m, j)
+template <typename S> RBD_HD void so_transpose_times(int nv, const S* A, const S* G, S* R) {
+  for (int k = 0; k < nv * nv; ++k) R[k] = S(0);
+  for (int mm = 0; mm < nv; ++mm)
+    for (int j = 0; j < nv; ++j) {
+      const S a = A[mm * nv + j];
+      if (so_skippable(a)) continue;
+      const S* g = G + mm * nv;
+      S* r = R + j * nv;
+      for (int k = 0; k < nv; ++k) r[k] += a * g[k];
+    }
+}
+
+// X (nv x nv², row i the flattened (j, k) slice) <- -M⁻¹ X, after
+// prepare_minv (w.dense). Columns (j, k) that are exactly zero stay zero
+// (pairs j, k on different branches: no triple on one root path); the others
+// go through blk (nv x nv) up to nv at a time. Uses w.so_i for their indices.
+template <typename S> RBD_HD void so_apply_neg_minv(const ModelView<S>& m, Workspace<S>& w, S* X, S* blk) {
+  const int nv = m.nv;
+  const long nn = static_cast<long>(nv) * nv;
+  int* cols = w.so_i;  // (nv) the columns in blk
+  int n = 0;
+  for (long c = 0; c <= nn; ++c) {
+    if (c < nn) {
+      bool zero = true;
+      for (int r = 0; r < nv && zero; ++r) zero = so_skippable(X[r * nn + c]);
+      if (zero) continue;
+      cols[n++] = static_cast<int>(c);
+      if (n < nv) continue;
+    }
+    if (n == 0) continue;
+    // blk (nv x n) <- the n columns, -M⁻¹ blk, back
+    for (int r = 0; r < nv; ++r)
+      for (int e = 0; e < n; ++e) blk[r * n + e] = X[r * nn + cols[e]];
+    apply_neg_minv(m, w, blk, n);
+    for (int r = 0; r < nv; ++r)
+      for (int e = 0; e < n; ++e) X[r * nn + cols[e]] = blk[r * n + e];
+    n = 0;
+  }
+}
+
+// the four (nv x nv x nv) tensors above; qdd (nv) too when not null. Uses
+// w.so_dense; false if M is not positive definite.
+template <typename S>
+RBD_HD bool fdsva_so(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* u, S gravity,
+                     S* d2qdd_dq2, S* d2qdd_dqd2, S* d2qdd_dqdqd, S* d2qdd_dqdu, S* qdd_out = nullptr) {
+  const int nv = m.nv;
+  const long nn = static_cast<long>(nv) * nv;
+  S* Gq = w.so_dense;  // ∂qdd/∂q
+  S* Gv = Gq + nn;     // ∂qdd/∂qd
+  S* Mi = Gv + nn;     // M⁻¹
+  S* blk = Mi + nn;
+  S* qdd = blk + nn;
+  // first order at qdd = FD(q, qd, u); w.dense keeps M⁻¹ (mimic models: the Cholesky factor of M)
+  if (!aba_derivatives(m, w, q, qd, u, static_cast<const S*>(nullptr), gravity, qdd, Gq, Gv)) return false;
+  if (m.has_mimic) {
+    for (int c = 0; c < nv; ++c) {
+      S* row = Mi + c * nv;
+      for (int r = 0; r < nv; ++r) row[r] = r == c ? S(1) : S(0);
+      cholesky_solve(w.dense, nv, row);
+    }
+  } else {
+    for (long k = 0; k < nn; ++k) Mi[k] = w.dense[k];
+  }
+  // second-order inverse dynamics at that acceleration; ∂M/∂q held in the last output for now
+  S* dM = d2qdd_dqdu;
+  idsva_so(m, w, q, qd, qdd, gravity, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, dM);
+  // the ∂M/∂q · ∂qdd terms, row by row
+  for (int i = 0; i < nv; ++i) {
+    const S* dMi = dM + i * nn;
+    so_transpose_times(nv, dMi, Gq, blk);
+    S* o = d2qdd_dq2 + i * nn;
+    for (int j = 0; j < nv; ++j)
+      for (int k = 0; k < nv; ++k) o[j * nv + k] += blk[j * nv + k] + blk[k * nv + j];
+    so_transpose_times(nv, dMi, Gv, blk);
+    o = d2qdd_dqdqd + i * nn;
+    for (long k = 0; k < nn; ++k) o[k] += blk[k];
+  }
+  // ∂M/∂q_j M⁻¹, in place row by row
+  for (int i = 0; i < nv; ++i) {
+    so_transpose_times(nv, dM + i * nn, Mi, blk);
+    for (long k = 0; k < nn; ++k) dM[i * nn + k] = blk[k];
+  }
+  // -M⁻¹ on the first index of all four
+  so_apply_neg_minv(m, w, d2qdd_dq2, blk);
+  so_apply_neg_minv(m, w, d2qdd_dqd2, blk);
+  so_apply_neg_minv(m, w, d2qdd_dqdqd, blk);
+  so_apply_neg_minv(m, w, d2qdd_dqdu, blk);
+  if (qdd_out)
+    for (int k = 0; k < nv; ++k) qdd_out[k] = qdd[k];
+  return true;
+}
+
+}  // namespace rbd
