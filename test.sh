@@ -26,11 +26,11 @@ cmake -S . -B build/sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBDKIT_CUDA_CHE
 cmake --build build/sanitize -j "$JOBS"
 (cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E find_package_consumer)
 
-# ---- Python: build and install the package, then pytest
-echo "building the Python package (pip install .) ..."
-PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation .
-"$PY" -m pytest -q -p no:cacheprovider tests/python
-
 # ---- second-order derivatives against Pinocchio's C++ library (not in its
 # Python module): one program built against the `pin` wheel (build/pinocchio_so)
 JOBS="$JOBS" PYTHON="$PY" tests/pinocchio_so/run.sh
+
+# ---- Python: build and install the package, then pytest (last: its summary closes the run)
+echo "building the Python package (pip install .) ..."
+PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation .
+"$PY" -m pytest -q -p no:cacheprovider tests/python
