@@ -5,6 +5,8 @@
 // under the sanitizers.
 #include <gtest/gtest.h>
 
+#include "test_models.hpp"
+
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -16,28 +18,10 @@
 using namespace rbd;
 
 namespace {
-struct ModelCase {
-  std::string path;
-  bool floating;
-};
-void PrintTo(const ModelCase& c, std::ostream* os) { *os << c.path << (c.floating ? " floating" : " fixed"); }
+using rbd_test::all_cases;
+using rbd_test::max_rel_err;
+using rbd_test::ModelCase;
 
-std::vector<ModelCase> all_cases() {
-  std::vector<ModelCase> out;
-  for (const char* r : {"iiwa", "hyq", "atlas"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_ROBOTS_DIR) + "/" + r + ".urdf", f});
-  for (const char* r : {"spherical", "helical", "planar", "mixed", "mimic"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_TEST_URDF_DIR) + "/" + r + ".urdf", f});
-  return out;
-}
-
-// max |a - b| / max(1, max |b|)
-double max_rel_err(const std::vector<double>& a, const std::vector<double>& b) {
-  double e = 0, s = 1;
-  for (size_t i = 0; i < a.size(); ++i) s = std::max(s, std::fabs(b[i]));
-  for (size_t i = 0; i < a.size(); ++i) e = std::max(e, std::fabs(a[i] - b[i]));
-  return e / s;
-}
 
 class Centroidal : public ::testing::TestWithParam<ModelCase> {
  protected:
@@ -203,12 +187,7 @@ TEST_P(Centroidal, BatchedHostApiChecksInputs) {
   EXPECT_LT(max_rel_err(dA, dA_fd), 1e-6);
 }
 
-INSTANTIATE_TEST_SUITE_P(Models, Centroidal, ::testing::ValuesIn(all_cases()), [](const auto& info) {
-  std::string p = info.param.path;
-  p = p.substr(p.find_last_of('/') + 1);
-  p = p.substr(0, p.find('.'));
-  return p + (info.param.floating ? "_floating" : "_fixed");
-});
+INSTANTIATE_TEST_SUITE_P(Models, Centroidal, ::testing::ValuesIn(all_cases()), rbd_test::case_name);
 
 TEST(CentroidalHostApi, MasslessRobotHasNoCenterOfMass) {
   const Model m = Model::from_urdf_string(

@@ -4,6 +4,8 @@
 // tests/python/test_regressor.py.
 #include <gtest/gtest.h>
 
+#include "test_models.hpp"
+
 #include <random>
 #include <stdexcept>
 
@@ -15,29 +17,12 @@
 using namespace rbd;
 
 namespace {
-struct ModelCase {
-  std::string path;
-  bool floating;
-};
-void PrintTo(const ModelCase& c, std::ostream* os) { *os << c.path << (c.floating ? " floating" : " fixed"); }
-
-std::vector<ModelCase> all_cases() {
-  std::vector<ModelCase> out;
-  for (const char* r : {"iiwa", "hyq", "atlas"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_ROBOTS_DIR) + "/" + r + ".urdf", f});
-  for (const char* r : {"spherical", "helical", "planar", "mixed", "mimic"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_TEST_URDF_DIR) + "/" + r + ".urdf", f});
-  return out;
-}
+using rbd_test::all_cases;
+using rbd_test::max_rel_err;
+using rbd_test::ModelCase;
 
 class Regressor : public ::testing::TestWithParam<ModelCase> {};
 
-double max_rel_err(const std::vector<double>& a, const std::vector<double>& b) {
-  double e = 0, s = 1;
-  for (size_t i = 0; i < a.size(); ++i) s = std::max(s, std::fabs(b[i]));
-  for (size_t i = 0; i < a.size(); ++i) e = std::max(e, std::fabs(a[i] - b[i]));
-  return e / s;
-}
 
 // M x (nv x cols, row-major) for M (nv x nv)
 std::vector<double> matmul(const std::vector<double>& M, const std::vector<double>& x, int nv, int cols) {

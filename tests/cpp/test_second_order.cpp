@@ -5,6 +5,8 @@
 // equivalence: tests/pinocchio_so; this suite also runs under the sanitizers.
 #include <gtest/gtest.h>
 
+#include "test_models.hpp"
+
 #include <algorithm>
 #include <random>
 
@@ -15,30 +17,12 @@
 using namespace rbd;
 
 namespace {
-struct ModelCase {
-  std::string path;
-  bool floating;
-};
-void PrintTo(const ModelCase& c, std::ostream* os) { *os << c.path << (c.floating ? " floating" : " fixed"); }
-
-std::vector<ModelCase> all_cases() {
-  std::vector<ModelCase> out;
-  for (const char* r : {"iiwa", "hyq", "atlas"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_ROBOTS_DIR) + "/" + r + ".urdf", f});
-  for (const char* r : {"spherical", "helical", "planar", "mixed", "mimic"})
-    for (bool f : {false, true}) out.push_back({std::string(RBDKIT_TEST_URDF_DIR) + "/" + r + ".urdf", f});
-  return out;
-}
+using rbd_test::all_cases;
+using rbd_test::max_rel_err;
+using rbd_test::ModelCase;
 
 class SecondOrder : public ::testing::TestWithParam<ModelCase> {};
 
-// max |a - b| / max(1, max |b|)
-double rel_err(const std::vector<double>& a, const std::vector<double>& b) {
-  double e = 0, s = 1;
-  for (size_t i = 0; i < a.size(); ++i) s = std::max(s, std::fabs(b[i]));
-  for (size_t i = 0; i < a.size(); ++i) e = std::max(e, std::fabs(a[i] - b[i]));
-  return e / s;
-}
 
 using Tensor = std::vector<double>;  // nv x nv x nv, [i][j][k]
 
@@ -122,7 +106,7 @@ TEST_P(SecondOrder, IdsvaSoMatchesFiniteDifferencesAndVariantsAgree) {
                        W[3].data());
   idsva_so_body_frame(mv, w, s.q.data(), s.qd.data(), s.qdd.data(), g, Bf[0].data(), Bf[1].data(), Bf[2].data(),
                       Bf[3].data());
-  for (int t = 0; t < 4; ++t) EXPECT_LT(rel_err(Bf[t], W[t]), 1e-10) << "tensor " << t;
+  for (int t = 0; t < 4; ++t) EXPECT_LT(max_rel_err(Bf[t], W[t]), 1e-10) << "tensor " << t;
 
   std::vector<double> tmp(nv * nv);
   auto dtau_dq = [&](const double* q, const double* v, double* out) {
@@ -132,19 +116,19 @@ TEST_P(SecondOrder, IdsvaSoMatchesFiniteDifferencesAndVariantsAgree) {
     rnea_derivatives(mv, w, q, v, s.qdd.data(), static_cast<const double*>(nullptr), g, tmp.data(), out);
   };
   auto mass = [&](const double* q, const double*, double* out) { crba(mv, w, q, out); };
-  EXPECT_LT(rel_err(W[0], fd_matrix(m, s, 0, dtau_dq)), 1e-6) << "d2tau_dq2";
-  EXPECT_LT(rel_err(W[1], fd_matrix(m, s, 1, dtau_dv)), 1e-6) << "d2tau_dqd2";
-  EXPECT_LT(rel_err(W[2], fd_matrix(m, s, 1, dtau_dq)), 1e-6) << "d2tau_dqdqd (qd steps)";
-  EXPECT_LT(rel_err(W[2], swap_jk(fd_matrix(m, s, 0, dtau_dv), nv)), 1e-6) << "d2tau_dqdqd (q steps)";
-  EXPECT_LT(rel_err(W[3], fd_matrix(m, s, 0, mass)), 1e-6) << "dM_dq";
+  EXPECT_LT(max_rel_err(W[0], fd_matrix(m, s, 0, dtau_dq)), 1e-6) << "d2tau_dq2";
+  EXPECT_LT(max_rel_err(W[1], fd_matrix(m, s, 1, dtau_dv)), 1e-6) << "d2tau_dqd2";
+  EXPECT_LT(max_rel_err(W[2], fd_matrix(m, s, 1, dtau_dq)), 1e-6) << "d2tau_dqdqd (qd steps)";
+  EXPECT_LT(max_rel_err(W[2], swap_jk(fd_matrix(m, s, 0, dtau_dv), nv)), 1e-6) << "d2tau_dqdqd (q steps)";
+  EXPECT_LT(max_rel_err(W[3], fd_matrix(m, s, 0, mass)), 1e-6) << "dM_dq";
 
   // symmetric: d2tau_dqd2 in (j, k), dM_dq in (i, j)
   Tensor dMt(n3);
   for (int i = 0; i < nv; ++i)
     for (int j = 0; j < nv; ++j)
       for (int k = 0; k < nv; ++k) dMt[(j * nv + i) * nv + k] = W[3][(i * nv + j) * nv + k];
-  EXPECT_LT(rel_err(W[1], swap_jk(W[1], nv)), 1e-13);
-  EXPECT_LT(rel_err(W[3], dMt), 1e-13);
+  EXPECT_LT(max_rel_err(W[1], swap_jk(W[1], nv)), 1e-13);
+  EXPECT_LT(max_rel_err(W[3], dMt), 1e-13);
 
   // the batched host entry point: the dispatch picks one of the two
   Tensor H[4];
@@ -180,11 +164,11 @@ TEST_P(SecondOrder, FdsvaSoMatchesFiniteDifferences) {
                                 tmp.data(), out));
   };
   auto minv_of = [&](const double* q, const double*, double* out) { ASSERT_TRUE(minv(mv, w, q, true, out)); };
-  EXPECT_LT(rel_err(T[0], fd_matrix(m, s, 0, dqdd_dq)), 1e-6) << "d2qdd_dq2";
-  EXPECT_LT(rel_err(T[1], fd_matrix(m, s, 1, dqdd_dv)), 1e-6) << "d2qdd_dqd2";
-  EXPECT_LT(rel_err(T[2], fd_matrix(m, s, 1, dqdd_dq)), 1e-6) << "d2qdd_dqdqd";
+  EXPECT_LT(max_rel_err(T[0], fd_matrix(m, s, 0, dqdd_dq)), 1e-6) << "d2qdd_dq2";
+  EXPECT_LT(max_rel_err(T[1], fd_matrix(m, s, 1, dqdd_dv)), 1e-6) << "d2qdd_dqd2";
+  EXPECT_LT(max_rel_err(T[2], fd_matrix(m, s, 1, dqdd_dq)), 1e-6) << "d2qdd_dqdqd";
   // ∂²qdd/∂q_j∂u_k = ∂(M⁻¹)_ik/∂q_j
-  EXPECT_LT(rel_err(T[3], swap_jk(fd_matrix(m, s, 0, minv_of), nv)), 1e-6) << "d2qdd_dqdu";
+  EXPECT_LT(max_rel_err(T[3], swap_jk(fd_matrix(m, s, 0, minv_of), nv)), 1e-6) << "d2qdd_dqdu";
 }
 
 TEST(SecondOrderApi, ChecksInputs) {
@@ -205,9 +189,4 @@ TEST(SecondOrderApi, ChecksInputs) {
                std::invalid_argument);
 }
 
-INSTANTIATE_TEST_SUITE_P(Models, SecondOrder, ::testing::ValuesIn(all_cases()), [](const auto& info) {
-  std::string p = info.param.path;
-  p = p.substr(p.find_last_of('/') + 1);
-  p = p.substr(0, p.find('.'));
-  return p + (info.param.floating ? "_floating" : "_fixed");
-});
+INSTANTIATE_TEST_SUITE_P(Models, SecondOrder, ::testing::ValuesIn(all_cases()), rbd_test::case_name);
