@@ -4,17 +4,18 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
+#include "arrays.hpp"
 #include "rbdkit/integrators_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 using rbd::Model;
+using rbd_py::In;
+using rbd_py::Out;
+using rbd_py::batch_of;
+using rbd_py::opt;
+using rbd_py::width;
 
-namespace {
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
-const double* opt(const std::optional<In>& a) { return a ? a->data() : nullptr; }
-}  // namespace
 
 void bind_integrators(nb::module_& m) {
   m.def("integrator_from_name", &rbd::integrator_from_name, "name"_a);

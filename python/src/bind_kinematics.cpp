@@ -10,18 +10,21 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include "arrays.hpp"
 #include "rbdkit/kinematics_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 using rbd::Model;
+using rbd_py::In;
+using rbd_py::Out;
+using rbd_py::batch_of;
+using rbd_py::opt;
+using rbd_py::width;
 
 namespace {
 
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
-long batch_size(const In& q) { return q.ndim() == 0 ? 1 : static_cast<long>(q.shape(0)); }
 
 // end effectors from body indices and optional offsets (B x n_ee x 3)
 rbd::EndEffectors end_effectors(const std::vector<int>& bodies, const std::optional<In>& offsets, const char* arg) {
@@ -44,19 +47,19 @@ void bind_kinematics(nb::module_& m) {
   // ---- placements and frame Jacobians
   m.def("forward_kinematics", [](const Model& md, In q, Out R, Out p) {
     nb::gil_scoped_release r;
-    rbd::batch::forward_kinematics(md, batch_size(q), q.data(), R.data(), p.data());
+    rbd::batch::forward_kinematics(md, batch_of(q), q.data(), R.data(), p.data());
   });
   m.def("frame_placement", [](const Model& md, In q, int frame, Out R, Out p) {
     nb::gil_scoped_release r;
-    rbd::batch::frame_placement(md, batch_size(q), q.data(), frame, R.data(), p.data());
+    rbd::batch::frame_placement(md, batch_of(q), q.data(), frame, R.data(), p.data());
   });
   m.def("frame_jacobian", [](const Model& md, In q, int frame, int rf, Out J) {
     nb::gil_scoped_release r;
-    rbd::batch::frame_jacobian(md, batch_size(q), q.data(), frame, rf, J.data());
+    rbd::batch::frame_jacobian(md, batch_of(q), q.data(), frame, rf, J.data());
   });
   m.def("frame_jacobian_dot", [](const Model& md, In q, In qd, int frame, int rf, Out dJ) {
     nb::gil_scoped_release r;
-    rbd::batch::frame_jacobian_dot(md, batch_size(q), q.data(), qd.data(), frame, rf, dJ.data());
+    rbd::batch::frame_jacobian_dot(md, batch_of(q), q.data(), qd.data(), frame, rf, dJ.data());
   });
 
   // ---- end effectors: bodies (n_ee), offsets (B x n_ee x 3) or None
@@ -65,7 +68,7 @@ void bind_kinematics(nb::module_& m) {
            Out pose) {
           const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
           nb::gil_scoped_release r;
-          rbd::batch::end_effector_pose(md, batch_size(q), q.data(), ee, pose.data());
+          rbd::batch::end_effector_pose(md, batch_of(q), q.data(), ee, pose.data());
         },
         "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "pose"_a);
   m.def("end_effector_pose_gradient",
@@ -73,7 +76,7 @@ void bind_kinematics(nb::module_& m) {
            Out G) {
           const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
           nb::gil_scoped_release r;
-          rbd::batch::end_effector_pose_gradient(md, batch_size(q), q.data(), ee, G.data());
+          rbd::batch::end_effector_pose_gradient(md, batch_of(q), q.data(), ee, G.data());
         },
         "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "G"_a);
   m.def("end_effector_pose_hessian",
@@ -82,9 +85,9 @@ void bind_kinematics(nb::module_& m) {
           const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
           nb::gil_scoped_release r;
           if (analytic)
-            rbd::batch::end_effector_pose_hessian_analytic(md, batch_size(q), q.data(), ee, H.data());
+            rbd::batch::end_effector_pose_hessian_analytic(md, batch_of(q), q.data(), ee, H.data());
           else
-            rbd::batch::end_effector_pose_hessian(md, batch_size(q), q.data(), ee, H.data());
+            rbd::batch::end_effector_pose_hessian(md, batch_of(q), q.data(), ee, H.data());
         },
         "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "analytic"_a, "H"_a);
   m.def("osc_inertia",
@@ -92,7 +95,7 @@ void bind_kinematics(nb::module_& m) {
            Out Lambda) {
           const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
           nb::gil_scoped_release r;
-          rbd::batch::osc_inertia(md, batch_size(q), q.data(), ee, Lambda.data());
+          rbd::batch::osc_inertia(md, batch_of(q), q.data(), ee, Lambda.data());
         },
         "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "Lambda"_a);
 }

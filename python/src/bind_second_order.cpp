@@ -4,17 +4,18 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
+#include "arrays.hpp"
 #include "rbdkit/second_order_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 using rbd::Model;
+using rbd_py::In;
+using rbd_py::Out;
+using rbd_py::batch_of;
+using rbd_py::opt;
+using rbd_py::width;
 
-namespace {
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
-long batch_of(const In& a) { return a.ndim() == 0 ? 1 : static_cast<long>(a.shape(0)); }
-}  // namespace
 
 void bind_second_order(nb::module_& m) {
   m.def("idsva_so",

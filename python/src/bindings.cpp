@@ -14,6 +14,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "arrays.hpp"
 #include "rbdkit/dynamics.hpp"
 
 namespace nb = nanobind;
@@ -23,21 +24,21 @@ void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 void bind_integrators(nb::module_& m);  // bind_integrators.cpp
 void bind_costs(nb::module_& m);        // bind_costs.cpp
 using rbd::Model;
+using rbd_py::In;
+using rbd_py::Out;
+using rbd_py::batch_of;
+using rbd_py::opt;
+using rbd_py::width;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
 void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
 void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 
-using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
-// pointer of an optional input (None -> null)
-const double* opt(const std::optional<In>& a) { return a ? a->data() : nullptr; }
 
-long batch_of(const In& a) { return a.ndim() == 0 ? 1 : static_cast<long>(a.shape(0)); }
 
 // seconds per call of `fn`, the best of `repeats` runs of `iters` calls
 template <typename Fn> double seconds_per_call(Fn&& fn, int iters, int repeats = 5) {
