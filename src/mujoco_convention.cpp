@@ -75,29 +75,29 @@ void state_from_mujoco(const Model& m, long B, const double* x, double* out) {
 }
 
 void force_to_mujoco(const Model& m, long B, const double* q_mj, const double* u, double* out) {
-  check_configurations_in(m, B, q_mj, "q", kMujocoConvention);
+  check_configurations_in(m, B, q_mj, "qpos", kMujocoConvention);
   check_finite(u, B * m.nv, "u");
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) rotate_to_mujoco(mv, q_mj + s * m.nq, u + s * m.nv, out + s * m.nv);
 }
 
 void force_from_mujoco(const Model& m, long B, const double* q_mj, const double* u, double* out) {
-  check_configurations_in(m, B, q_mj, "q", kMujocoConvention);
+  check_configurations_in(m, B, q_mj, "qpos", kMujocoConvention);
   check_finite(u, B * m.nv, "u");
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) rotate_from_mujoco(mv, q_mj + s * m.nq, u + s * m.nv, out + s * m.nv);
 }
 
 void mujoco_integrate(const Model& m, long B, const double* q, const double* v, double* out) {
-  check_configurations_in(m, B, q, "q", kMujocoConvention);
+  check_configurations_in(m, B, q, "qpos", kMujocoConvention);
   check_finite(v, B * m.nv, "v");
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) mj_integrate(mv, q + s * m.nq, v + s * m.nv, out + s * m.nq);
 }
 
 void mujoco_difference(const Model& m, long B, const double* q0, const double* q1, double* out) {
-  check_configurations_in(m, B, q0, "q0", kMujocoConvention);
-  check_configurations_in(m, B, q1, "q1", kMujocoConvention);
+  check_configurations_in(m, B, q0, "qpos0", kMujocoConvention);
+  check_configurations_in(m, B, q1, "qpos1", kMujocoConvention);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) mj_difference(mv, q0 + s * m.nq, q1 + s * m.nq, out + s * m.nv);
 }
