@@ -33,15 +33,17 @@
 namespace rbd {
 
 // ---------------------------------------------------------------- jet algebra
+// Every H is symmetric in (j, k): the products below fill the upper triangle
+// (k >= j) only, and jet_mirror completes a tensor once it is summed.
 
-// H[i] += s · DAᵀ T[i] DB: H[i, j, k] += s Σ_ab T[i, a, b] DA[a, j] DB[b, k]
-// (T n x p x p, DA and DB p x N, H n x N x N); tmp (p x N)
+// H[i] += s · Yᵀ T[i] Y on k >= j: H[i, j, k] += s Σ_ab T[i, a, b] Y[a, j] Y[b, k]
+// (T n x p x p, each T[i] symmetric; Y p x N; H n x N x N); tmp (p x N)
 template <typename S>
-RBD_HD void jet_add_bilinear(int n, int p, int N, const S* T, const S* DA, const S* DB, S s, S* H, S* tmp) {
+RBD_HD void jet_add_quadratic_upper(int n, int p, int N, const S* T, const S* Y, S s, S* H, S* tmp) {
   const long NN = static_cast<long>(N) * N;
   for (int i = 0; i < n; ++i) {
     const S* Ti = T + static_cast<long>(i) * p * p;
-    // tmp = T[i] DB
+    // tmp = T[i] Y
     bool any = false;
     for (long k = 0; k < static_cast<long>(p) * N; ++k) tmp[k] = S(0);
     for (int a = 0; a < p; ++a)
@@ -49,65 +51,49 @@ RBD_HD void jet_add_bilinear(int n, int p, int N, const S* T, const S* DA, const
         const S t = Ti[a * p + b];
         if (so_skippable(t)) continue;
         any = true;
-        const S* db = DB + static_cast<long>(b) * N;
+        const S* yb = Y + static_cast<long>(b) * N;
         S* ta = tmp + static_cast<long>(a) * N;
-        for (int k = 0; k < N; ++k) ta[k] += t * db[k];
+        for (int k = 0; k < N; ++k) ta[k] += t * yb[k];
       }
     if (!any) continue;
-    // H[i] += s DAᵀ tmp
+    // H[i] += s Yᵀ tmp, k >= j
     S* Hi = H + i * NN;
     for (int a = 0; a < p; ++a) {
       const S* ta = tmp + static_cast<long>(a) * N;
       for (int j = 0; j < N; ++j) {
-        const S d = DA[static_cast<long>(a) * N + j];
-        if (so_skippable(d)) continue;
-        const S sd = s * d;
+        const S y = Y[static_cast<long>(a) * N + j];
+        if (so_skippable(y)) continue;
+        const S sy = s * y;
         S* h = Hi + static_cast<long>(j) * N;
-        for (int k = 0; k < N; ++k) h[k] += sd * ta[k];
+        for (int k = j; k < N; ++k) h[k] += sy * ta[k];
       }
     }
   }
 }
 
-// H[i] += s Σ_a F[i, a] Hin[a]   (F n x p, Hin p x N x N, H n x N x N)
-template <typename S> RBD_HD void jet_add_linear(int n, int p, int N, const S* F, const S* Hin, S s, S* H) {
+// H[i] += s Σ_a F[i, a] Hin[a] on k >= j (F n x p, Hin p x N x N, H n x N x N);
+// row j of every Hin[a] is reused across i while it is in cache
+template <typename S> RBD_HD void jet_add_linear_upper(int n, int p, int N, const S* F, const S* Hin, S s, S* H) {
   const long NN = static_cast<long>(N) * N;
-  for (int i = 0; i < n; ++i)
-    for (int a = 0; a < p; ++a) {
-      const S f = F[i * p + a];
-      if (so_skippable(f)) continue;
-      const S sf = s * f;
-      const S* h = Hin + a * NN;
-      S* o = H + i * NN;
-      for (long k = 0; k < NN; ++k) o[k] += sf * h[k];
-    }
-}
-
-// H[i, j, k] <- H[i, j, k] + H[i, k, j], in place (n x N x N)
-template <typename S> RBD_HD void jet_symmetrize(int n, int N, S* H) {
-  for (int i = 0; i < n; ++i) {
-    S* Hi = H + static_cast<long>(i) * N * N;
-    for (int j = 0; j < N; ++j) {
-      Hi[j * N + j] += Hi[j * N + j];
-      for (int k = j + 1; k < N; ++k) {
-        const S t = Hi[j * N + k] + Hi[k * N + j];
-        Hi[j * N + k] = t;
-        Hi[k * N + j] = t;
+  for (int j = 0; j < N; ++j)
+    for (int i = 0; i < n; ++i) {
+      S* h = H + i * NN + static_cast<long>(j) * N;
+      for (int a = 0; a < p; ++a) {
+        const S f = F[i * p + a];
+        if (so_skippable(f)) continue;
+        const S sf = s * f;
+        const S* src = Hin + a * NN + static_cast<long>(j) * N;
+        for (int k = j; k < N; ++k) h[k] += sf * src[k];
       }
     }
-  }
 }
 
-// H[i] <- ½ (H[i] + H[i]ᵀ), in place (n x N x N): rounding-exact symmetry
-template <typename S> RBD_HD void jet_symmetric_part(int n, int N, S* H) {
+// H[i, k, j] <- H[i, j, k] for k > j (n x N x N)
+template <typename S> RBD_HD void jet_mirror(int n, int N, S* H) {
   for (int i = 0; i < n; ++i) {
     S* Hi = H + static_cast<long>(i) * N * N;
     for (int j = 0; j < N; ++j)
-      for (int k = j + 1; k < N; ++k) {
-        const S t = S(0.5) * (Hi[j * N + k] + Hi[k * N + j]);
-        Hi[j * N + k] = t;
-        Hi[k * N + j] = t;
-      }
+      for (int k = j + 1; k < N; ++k) Hi[k * N + j] = Hi[j * N + k];
   }
 }
 
@@ -182,7 +168,7 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
     for (int c = 0; c < nv; ++c) Dxi[r * N + c] += Gq[r * nv + c];
   // second order: Gw Hw, then the curvature of the retraction per joint
   for (long k = 0; k < nv * NN; ++k) Hxi[k] = S(0);
-  if (Hw_src) jet_add_linear(nv, nv, N, Gw, Hw_src, hw_scale, Hxi);
+  if (Hw_src) jet_add_linear_upper(nv, nv, N, Gw, Hw_src, hw_scale, Hxi);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic || (b.type != kFree && b.type != kSpherical)) continue;
@@ -193,9 +179,9 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
         J[r * N + c] = c == o + r ? S(1) : S(0);
         J[(d + r) * N + c] = Dw[(o + r) * N + c];
       }
-    jet_add_bilinear(d, 2 * d, N, G2, J, J, S(1), Hxi + o * NN, tmp);
-    jet_symmetric_part(d, N, Hxi + o * NN);
+    jet_add_quadratic_upper(d, 2 * d, N, G2, J, S(1), Hxi + o * NN, tmp);
   }
+  jet_mirror(nv, N, Hxi);
 }
 
 // ---------------------------------------------------------------- acceleration jet
@@ -203,7 +189,7 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
 // scratch values of acceleration_jet
 RBD_HD long acceleration_jet_scratch_values(int nv) {
   const long nn = static_cast<long>(nv) * nv;
-  return 3 * nn + 4 * nn * nv + 3 * nn;
+  return 3 * nn + 8 * nn * nv + 12 * nn;
 }
 
 // The jet of a = FD(q̄ ⊕ ξ, v, u + δu) from the jets of ξ (Dq, Hq) and of v
@@ -212,7 +198,7 @@ RBD_HD long acceleration_jet_scratch_values(int nv) {
 template <typename S>
 RBD_HD bool acceleration_jet(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u, S gravity,
                              const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* a, S* Da, S* Ha, S* scratch) {
-  const int nv = m.nv, N = 3 * nv;
+  const int nv = m.nv, N = 3 * nv, p = 2 * nv;
   const long nn = static_cast<long>(nv) * nv, NN = static_cast<long>(N) * N;
   S* Fq = scratch;        // ∂a/∂q (nv x nv)
   S* Fv = Fq + nn;        // ∂a/∂v
@@ -221,7 +207,9 @@ RBD_HD bool acceleration_jet(const ModelView<S>& m, Workspace<S>& w, const S* q,
   S* Avv = Aqq + nn * nv; // ∂²a/∂v∂v
   S* Aqv = Avv + nn * nv; // ∂²a/∂q∂v
   S* Aqu = Aqv + nn * nv; // ∂²a/∂q∂u
-  S* tmp = Aqu + nn * nv; // (nv x N)
+  S* T = Aqu + nn * nv;   // per row i the Hessian in (ξ, v) (nv x 2nv x 2nv)
+  S* Y = T + 4 * nn * nv; // [Dq; Dv] (2nv x N)
+  S* tmp = Y + 6 * nn;    // (2nv x N)
   // first order; aba_derivatives leaves M⁻¹ (mimic: its Cholesky factor) in w.dense
   if (!aba_derivatives(m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a, Fq, Fv)) return false;
   for (int r = 0; r < nv; ++r)
@@ -233,26 +221,40 @@ RBD_HD bool acceleration_jet(const ModelView<S>& m, Workspace<S>& w, const S* q,
   for (long k = 0; k < nv * static_cast<long>(N); ++k) Da[k] += tmp[k];
   for (int r = 0; r < nv; ++r)
     for (int c = 0; c < nv; ++c) Da[r * N + 2 * nv + c] += Mi[r * nv + c];
-  // second order: X = ½ Aqq[Dq, Dq] + Aqv[Dq, Dv] + ½ Avv[Dv, Dv] + Aqu[Dq, Du], Ha = X + Xᵀ + Fq Hq + Fv Hv
+  // second order: Ha = Yᵀ T Y + (the q-u terms) + Fq Hq + Fv Hv, T = [[sym Aqq, Aqv], [Aqvᵀ, Avv]]
   if (!fdsva_so(m, w, q, v, u, gravity, Aqq, Avv, Aqv, Aqu)) return false;
+  for (int i = 0; i < nv; ++i) {
+    const long o = static_cast<long>(i) * nn;
+    S* Ti = T + static_cast<long>(i) * p * p;
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) {
+        Ti[r * p + c] = S(0.5) * (Aqq[o + r * nv + c] + Aqq[o + c * nv + r]);
+        Ti[r * p + nv + c] = Aqv[o + r * nv + c];
+        Ti[(nv + c) * p + r] = Aqv[o + r * nv + c];
+        Ti[(nv + r) * p + nv + c] = Avv[o + r * nv + c];
+      }
+  }
+  for (long k = 0; k < nv * static_cast<long>(N); ++k) Y[k] = Dq[k], Y[nv * static_cast<long>(N) + k] = Dv[k];
   for (long k = 0; k < nv * NN; ++k) Ha[k] = S(0);
-  jet_add_bilinear(nv, nv, N, Aqq, Dq, Dq, S(0.5), Ha, tmp);
-  jet_add_bilinear(nv, nv, N, Aqv, Dq, Dv, S(1), Ha, tmp);
-  jet_add_bilinear(nv, nv, N, Avv, Dv, Dv, S(0.5), Ha, tmp);
-  // Du = [0 0 I]: Aqu[Dq, Du][i, j, 2nv + c] = Σ_b Aqu[i, b, c] Dq[b, j]
+  jet_add_quadratic_upper(nv, p, N, T, Y, S(1), Ha, tmp);
+  // Du = [0 0 I]: Ha[i, j, 2nv + c] and Ha[i, 2nv + c, j] += Σ_b Aqu[i, b, c] Dq[b, j]
   for (int i = 0; i < nv; ++i)
     for (int b = 0; b < nv; ++b) {
       const S* t = Aqu + (static_cast<long>(i) * nv + b) * nv;
+      S* Hi = Ha + i * NN;
       for (int j = 0; j < N; ++j) {
         const S d = Dq[b * N + j];
         if (so_skippable(d)) continue;
-        S* h = Ha + i * NN + static_cast<long>(j) * N + 2 * nv;
-        for (int c = 0; c < nv; ++c) h[c] += d * t[c];
+        for (int c = 0; c < nv; ++c) {
+          const S x = d * t[c];
+          Hi[static_cast<long>(j) * N + 2 * nv + c] += x;
+          Hi[static_cast<long>(2 * nv + c) * N + j] += x;
+        }
       }
     }
-  jet_symmetrize(nv, N, Ha);
-  if (Hq) jet_add_linear(nv, nv, N, Fq, Hq, S(1), Ha);
-  if (Hv) jet_add_linear(nv, nv, N, Fv, Hv, S(1), Ha);
+  if (Hq) jet_add_linear_upper(nv, nv, N, Fq, Hq, S(1), Ha);
+  if (Hv) jet_add_linear_upper(nv, nv, N, Fv, Hv, S(1), Ha);
+  jet_mirror(nv, N, Ha);
   return true;
 }
 
