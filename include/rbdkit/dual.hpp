@@ -4,6 +4,8 @@
 // integrate. Not a finite difference: the result is exact to rounding.
 #pragma once
 
+#include <type_traits>
+
 #include "config.hpp"
 
 namespace rbd {
@@ -13,7 +15,9 @@ template <typename S> struct Dual {
   RBD_HD Dual() : v(0), d(0) {}
   RBD_HD Dual(S value) : v(value), d(0) {}
   RBD_HD Dual(S value, S deriv) : v(value), d(deriv) {}
-  RBD_HD explicit Dual(int value) : v(S(value)), d(0) {}
+  // from a plain number (int, or the base scalar of a nested dual) without rounding through int
+  template <typename T, typename = typename std::enable_if<std::is_arithmetic<T>::value>::type>
+  RBD_HD explicit Dual(T value) : v(S(value)), d(0) {}
   RBD_HD Dual& operator+=(const Dual& o) { v += o.v; d += o.d; return *this; }
   RBD_HD Dual& operator-=(const Dual& o) { v -= o.v; d -= o.d; return *this; }
   RBD_HD Dual& operator*=(const Dual& o) { d = d * o.v + v * o.d; v *= o.v; return *this; }
@@ -27,7 +31,10 @@ template <typename S> RBD_HD Dual<S> operator/(const Dual<S>& a, const Dual<S>& 
   return {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
 }
 
-template <typename S> RBD_HD S value_of(const Dual<S>& a) { return a.v; }
+// the real part, through nested duals (Dual<Dual<S>> -> S)
+template <typename S> struct DualBase { using type = S; };
+template <typename S> struct DualBase<Dual<S>> { using type = typename DualBase<S>::type; };
+template <typename S> RBD_HD typename DualBase<S>::type value_of(const Dual<S>& a) { return value_of(a.v); }
 template <typename S> RBD_HD Dual<S> ssin(const Dual<S>& a) { return {ssin(a.v), a.d * scos(a.v)}; }
 template <typename S> RBD_HD Dual<S> scos(const Dual<S>& a) { return {scos(a.v), -a.d * ssin(a.v)}; }
 template <typename S> RBD_HD Dual<S> ssqrt(const Dual<S>& a) {
@@ -37,8 +44,8 @@ template <typename S> RBD_HD Dual<S> ssqrt(const Dual<S>& a) {
 template <typename S> RBD_HD Dual<S> satan2(const Dual<S>& y, const Dual<S>& x) {
   return {satan2(y.v, x.v), (x.v * y.d - y.v * x.d) / (x.v * x.v + y.v * y.v)};
 }
-template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return a.v < 0 ? -a : a; }
+template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return value_of(a) < 0 ? -a : a; }
 
-template <typename S> struct Eps<Dual<S>> { static constexpr S small = Eps<S>::small; };
+template <typename S> struct Eps<Dual<S>> { static constexpr typename DualBase<S>::type small = Eps<S>::small; };
 
 }  // namespace rbd

@@ -8,6 +8,8 @@ output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
 frames and retraction for q, qd, u, x⁺ and [A | B]; see _mujoco.py).
 """
 
+import numpy as np
+
 from . import _core
 from ._checks import Batch, check_scalar
 from ._mujoco import convention_code
@@ -83,3 +85,29 @@ class IntegratorsMixin:
         """[A | B] (2·nv, 3·nv) of plant_step, tangent space."""
         q, qd = self._split_state(x)
         return self.integrator_gradient(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
+
+    def plant_step_hessian(self, x, u, dt, integrator_type="euler", gravity=GRAVITY):
+        """H (2·nv, 3·nv, 3·nv): the second-order sensitivity of plant_step.
+
+        With z = [δq; δqd; δu] (3·nv), the input q = integrate(q0, δq),
+        qd = qd0 + δqd, u = u0 + δu, and the output read in the chart at the
+        nominal output, ψ(z) = [difference(q⁺(0), q⁺(z)); qd⁺(z) - qd⁺(0)],
+        H[i, j, k] = ∂²ψ_i/∂z_j∂z_k (symmetric in j, k), so that
+        x⁺(z) = x⁺(0) ⊕ (AB z + ½ H[z, z] + O(|z|³)) with AB = plant_step_gradient.
+        Every integrator_type; batched: (B, 2·nv, 3·nv, 3·nv). No f_ext
+        argument (the second-order forward dynamics take no external forces).
+        """
+        t = integrator_code(integrator_type)
+        dt, g = check_dt(dt), check_scalar(gravity, "gravity")
+        nq, nv = self.nq, self.nv
+        b = Batch()
+        ix, iu = b.add(x, "x", (nq + nv,), ("nq+nv",)), self._v(b, u, "u")
+        X = b.get(ix)
+        bad = ~np.isfinite(X).all(axis=1)
+        if bad.any():
+            s = int(np.argmax(bad))
+            raise ValueError(f"x{f'[{s}]' if b.batched else ''}: expected finite values")
+        xn, AB, H = b.out(nq + nv), b.out(2 * nv, 3 * nv), b.out(2 * nv, 3 * nv, 3 * nv)
+        _core.plant_step_hessian(self._m, np.ascontiguousarray(X[:, :nq]), np.ascontiguousarray(X[:, nq:]), b.get(iu),
+                                 dt, g, t, xn, AB, H)
+        return b.ret(H)

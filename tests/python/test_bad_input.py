@@ -69,6 +69,7 @@ METHODS = {
     "idsva_so_world_frame": ("q", "qd", "qdd"),
     "idsva_so": ("q", "qd", "qdd"),
     "fdsva_so": ("q", "qd", "u"),
+    "plant_step_hessian": ("x", "u"),
     "state_to_mujoco": ("x",),
     "state_from_mujoco": ("x",),
     "force_to_mujoco": ("qpos", "u"),
@@ -95,7 +96,7 @@ WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_grav
                 "inverse_dynamics_regressor", "inverse_dynamics_regressor_gradient",
                 "forward_dynamics_parameter_gradient", "potential_energy_regressor", "potential_energy",
                 "mechanical_energy",
-                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so")
+                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so", "plant_step_hessian")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
@@ -133,7 +134,7 @@ def valid_args(model, method):
 def call(rbd, method, args):
     if method == "time_per_call":
         return rbd.time_per_call("crba", iters=1, **args)
-    if method in ("integrator", "integrator_gradient"):
+    if method in ("integrator", "integrator_gradient", "plant_step_hessian"):
         return getattr(rbd, method)(dt=0.01, integrator_type="rk4", **args)
     return getattr(rbd, method)(**args)
 

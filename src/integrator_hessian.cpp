@@ -1,0 +1,43 @@
+// Host entry point of the step Hessian (algorithms/integrator_hessian.hpp):
+// input checks and the batched loop.
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "rbdkit/algorithms/integrator_hessian.hpp"
+#include "rbdkit/integrators_api.hpp"
+
+namespace rbd {
+namespace batch {
+
+void plant_step_hessian(const Model& m, long B, const double* q, const double* v, const double* u, double dt,
+                        double gravity, int type, double* x_next, double* AB, double* H) {
+  check_configurations(m, B, q, "q");
+  check_finite(v, B * m.nv, "qd");
+  check_finite(u, B * m.nv, "u");
+  check_finite(&gravity, 1, "gravity");
+  if (!std::isfinite(dt) || dt <= 0) {
+    std::ostringstream os;
+    os << "dt: expected a positive finite time step, got " << dt;
+    throw std::invalid_argument(os.str());
+  }
+  if (type < kEuler || type > kConstantAcceleration) throw std::invalid_argument("integrator_type: out of range");
+  WorkspaceBuffer buf(m);
+  const ModelView<double> mv = m.view();
+  const int nq = m.nq, nv = m.nv;
+  const long n_ab = 6L * nv * nv, n_h = 18L * nv * nv * nv;
+  std::vector<double> scratch(integrator_hessian_scratch_values(nq, nv));
+  for (long s = 0; s < B; ++s) {
+    double* x = x_next + s * (nq + nv);
+    if (!integrator_hessian(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv, dt, gravity, x, x + nq,
+                            AB + s * n_ab, H + s * n_h, scratch.data())) {
+      std::ostringstream os;
+      os << "plant_step_hessian: the mass matrix is not positive definite at sample " << s;
+      throw std::runtime_error(os.str());
+    }
+  }
+}
+
+}  // namespace batch
+}  // namespace rbd
