@@ -65,7 +65,8 @@ ENGINE_ROUTES = {
     "nonlinear_effects": ("inverse_dynamics", (("q", "nq"), ("qd", "nv"), ("0", "nv")), ("gravity",),
                           (("nv",),), 0),
     "crba": ("crba", (("q", "nq"),), (), (("nv", "nv"),), 0),
-    "minv": ("minv", (("q", "nq"),), (), (("nv", "nv"),), 0, lambda a: bool(a["output_dense"])),
+    "minv": ("minv", (("q", "nq"),), (), (("nv", "nv"),), 0, 
+             lambda a: isinstance(a["output_dense"], (bool, np.bool_)) and bool(a["output_dense"])),
     "aba": ("forward_dynamics", (("q", "nq"), ("qd", "nv"), ("tau", "nv")), ("gravity",), (("nv",),), 0),
     "forward_dynamics": ("forward_dynamics", (("q", "nq"), ("qd", "nv"), ("u", "nv")), ("gravity",),
                          (("nv",),), 0),
@@ -99,7 +100,7 @@ def _check_threads(threads):
 
 def _check_dtype(dtype):
     name = dtype if isinstance(dtype, str) else None
-    if name is None:
+    if name is None and dtype is not None:
         try:
             name = np.dtype(dtype).name
         except TypeError:
@@ -132,6 +133,8 @@ def _check_algorithms(algorithms):
         algorithms = [algorithms]
     if not isinstance(algorithms, (list, tuple, set, frozenset)):
         raise TypeError(f"algorithms: expected a list of algorithm names or None, got {type(algorithms).__name__}")
+    if len(algorithms) == 0:
+        raise ValueError("algorithms: expected at least one algorithm name (None for every algorithm)")
     for a in algorithms:
         if not isinstance(a, str):
             raise TypeError(f"algorithms: expected algorithm names (str), got an entry of type {type(a).__name__}")
