@@ -88,6 +88,11 @@ def report(robot="iiwa", floating_base=False, seed=0, out=sys.stdout):
     return 0
 
 
+# the benchmark scripts, first found wins: the batched benchmark's, then the
+# single-call one's (both build in build/bench and take Google Benchmark flags)
+BENCH_SCRIPTS = ("bench/run_batch.sh", "bench/run.sh")
+
+
 def source_dir():
     """the source checkout holding bench/run.sh: $RBDKIT_SOURCE_DIR, the one
     this package was built from (_build_info.py, written by CMake), or the
@@ -152,15 +157,17 @@ def bench(args, extra):
     env = dict(os.environ, BENCH_JSON=raw, BENCH_REPORT="0", PYTHON=os.environ.get("PYTHON", sys.executable))
     if args.quick:
         env.update(REPS=env.get("REPS", "1"), MIN_TIME=env.get("MIN_TIME", "0.05"))
-    cmd = ["bash", os.path.join(src, "bench", "run.sh"),
-           f"--benchmark_filter={bench_filter(robots_, ops, batch, threads)}", *extra]
+    script = next(os.path.join(src, s) for s in BENCH_SCRIPTS if os.path.isfile(os.path.join(src, s)))
+    # the last --benchmark_out wins: ours, whatever the script sets
+    cmd = ["bash", script, f"--benchmark_filter={bench_filter(robots_, ops, batch, threads)}", *extra,
+           f"--benchmark_out={raw}", "--benchmark_out_format=json"]
     print("rbdkit bench: " + " ".join(cmd), flush=True)
     rc = subprocess.run(cmd, env=env).returncode
     if rc != 0:
-        print(f"rbdkit: error: bench/run.sh failed (exit status {rc})", file=sys.stderr)
+        print(f"rbdkit: error: {os.path.relpath(script, src)} failed (exit status {rc})", file=sys.stderr)
         return rc
     if not os.path.isfile(raw):
-        raise FileNotFoundError(f"bench/run.sh wrote no results at '{raw}'")
+        raise FileNotFoundError(f"{os.path.relpath(script, src)} wrote no results at '{raw}'")
     benchreport.report(raw, out, png=not args.no_png)
     return 0
 

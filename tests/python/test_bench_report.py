@@ -165,7 +165,9 @@ def test_bench_runs_run_sh_and_reports(tmp_path, monkeypatch, capsys):
     (tmp_path / "gb.json").write_text(json.dumps(synthetic_json()))
     script = src / "bench" / "run.sh"
     script.write_text(f'#!/usr/bin/env bash\nprintf "%s\\n" "$@" > {tmp_path}/args\n'
-                      f'echo "$BENCH_REPORT $REPS $MIN_TIME" > {tmp_path}/env\ncp {tmp_path}/gb.json "$BENCH_JSON"\n')
+                      f'echo "$BENCH_REPORT $REPS $MIN_TIME" > {tmp_path}/env\n'
+                      f'for a in "$@"; do [[ $a == --benchmark_out=* ]] && cp {tmp_path}/gb.json "${{a#*=}}"; done\n'
+                      f'exit 0\n')
     script.chmod(script.stat().st_mode | stat.S_IEXEC)
     monkeypatch.setenv("RBDKIT_SOURCE_DIR", str(src))
     monkeypatch.delenv("REPS", raising=False)
@@ -176,7 +178,8 @@ def test_bench_runs_run_sh_and_reports(tmp_path, monkeypatch, capsys):
     assert rc == 0
     args = (tmp_path / "args").read_text().split()
     assert args == ["--benchmark_filter=" + cli.bench_filter(["iiwa", "atlas_floating"], ["rnea"], [0, 64], [1]),
-                    "--benchmark_min_warmup_time=0"]
+                    "--benchmark_min_warmup_time=0", f"--benchmark_out={out / 'benchmark.json'}",
+                    "--benchmark_out_format=json"]
     assert (tmp_path / "env").read_text().split() == ["0", "1", "0.05"]
     assert "(0.80)" in capsys.readouterr().out
     assert sorted(os.listdir(out)) == ["benchmark.json", "results.csv", "results.json"]
@@ -212,3 +215,21 @@ def test_bench_report_py_delegates(bench_json, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "batched: rbdkit vs Pinocchio per knot point" in r.stdout and "(0.80)" in r.stdout
     assert os.path.isfile(tmp_path / "batched" / "results.csv")
+
+
+def test_bench_prefers_the_batched_script(tmp_path, monkeypatch, capsys):
+    src = tmp_path / "src"
+    (src / "bench").mkdir(parents=True)
+    (tmp_path / "gb.json").write_text(json.dumps(synthetic_json()))
+    for name in ("run.sh", "run_batch.sh"):
+        (src / "bench" / name).write_text(
+            f'#!/usr/bin/env bash\necho {name} > {tmp_path}/which\n'
+            f'for a in "$@"; do [[ $a == --benchmark_out=* ]] && cp {tmp_path}/gb.json "${{a#*=}}"; done\nexit 0\n')
+    monkeypatch.setenv("RBDKIT_SOURCE_DIR", str(src))
+    assert cli.main(["bench", "--out", str(tmp_path / "o"), "--no-png"]) == 0
+    assert (tmp_path / "which").read_text().strip() == "run_batch.sh"
+    # a failing script: its exit status and name
+    (src / "bench" / "run_batch.sh").write_text("#!/usr/bin/env bash\nexit 3\n")
+    capsys.readouterr()
+    assert cli.main(["bench", "--out", str(tmp_path / "o"), "--no-png"]) == 3
+    assert "bench/run_batch.sh failed (exit status 3)" in capsys.readouterr().err
