@@ -278,11 +278,10 @@ class Handle:
             if arg == "x":
                 self._check_values("q", x[:, :self.nq], config=True)  # the names RBD.plant_step reports
                 self._check_values("qd", x[:, self.nq:])
-                arrays += [np.ascontiguousarray(x[:, :self.nq], dtype=self.dtype),
-                           np.ascontiguousarray(x[:, self.nq:], dtype=self.dtype)]
+                arrays += [self._engine_array(x[:, :self.nq]), self._engine_array(x[:, self.nq:])]
                 continue
             self._check_values(arg, x, config=(arg == "q"))
-            arrays.append(np.ascontiguousarray(x, dtype=self.dtype))
+            arrays.append(self._engine_array(x))
         outs = [np.empty((b.size,) + tuple(dims[d] for d in shape), dtype=self.dtype) for shape in outputs]
         # the engine's argument order: arrays, then gravity / dt, gravity, type, then outputs
         getattr(self._engine, name)(*arrays, *sc, *outs)
@@ -291,6 +290,11 @@ class Handle:
         if isinstance(result, tuple):
             return tuple(b.ret(outs[k]) for k in result)
         return b.ret(outs[result])
+
+    def _engine_array(self, x):
+        """C-contiguous, writable (an unbatched argument is a read-only
+        broadcast view), in the engine's dtype"""
+        return np.require(x, dtype=self.dtype, requirements=["C", "W"])
 
     def _check_values(self, name, x, config=False):
         """finite values and unit quaternions, with the messages of the C++ checks"""

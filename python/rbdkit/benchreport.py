@@ -205,9 +205,13 @@ def write_png(rows, path):
                             color=colors.get((r["impl"], r["dtype"]), "k"),
                             linestyle="-" if r["threads"] == 1 else "--",
                             label=f"{r['impl']} {r['dtype']} T{r['threads']}")
+            ax.set_title(f"{robot}: {op}", fontsize=9)
+            if not ax.get_lines():
+                ax.axis("off")
+                ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes, fontsize=8)
+                continue
             ax.set_xscale("log", base=2)
             ax.set_yscale("log")
-            ax.set_title(f"{robot}: {op}", fontsize=9)
             ax.tick_params(labelsize=7)
             if i == len(ops) - 1:
                 ax.set_xlabel("B (knot points per call)", fontsize=8)
