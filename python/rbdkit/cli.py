@@ -181,8 +181,9 @@ def main(argv=None):
     r.add_argument("--seed", type=int, default=0)
     sub.add_parser("robots", help="list the bundled robots")
     bp = sub.add_parser("bench", help="rbdkit vs Pinocchio per knot point: table, CSV, JSON, PNG",
-                        description="Runs bench/run.sh of the source checkout (extra Google Benchmark flags "
-                                    "after --) and reports ns per knot point with the rbdkit/Pinocchio ratio.")
+                        description="Runs bench/run_batch.sh (else bench/run.sh) of the source checkout (extra "
+                                    "Google Benchmark flags after --) and reports ns per knot point with the "
+                                    "rbdkit/Pinocchio ratio.")
     bp.add_argument("--robots", help="comma-separated: iiwa, hyq, atlas, hyq_floating, atlas_floating (default all)")
     bp.add_argument("--ops", help="comma-separated: rnea, crba, minv, aba, rnea_derivatives, aba_derivatives, "
                                   "integrator_rk4, integrator_gradient_rk4 (default all)")

@@ -123,7 +123,8 @@ def test_csv_json_png_written(bench_json, tmp_path):
     doc = json.load(open(paths["json"]))
     assert doc["machine"]["host_name"] == "testhost" and "platform" in doc["machine"]
     assert doc["batches"] == [0, 16, 64, 1024]
-    r = next(r for r in doc["rows"] if (r["robot"], r["impl"], r["dtype"], r["threads"]) == ("iiwa", "rbdkit", "f64", 1))
+    r = next(r for r in doc["rows"]
+             if (r["robot"], r["impl"], r["dtype"], r["threads"]) == ("iiwa", "rbdkit", "f64", 1))
     assert r["cells"]["0"]["ratio"] == pytest.approx(0.8)
     assert doc["targets"]["missed"][0]["cell"] == "atlas_floating/integrator_gradient_rk4/T2"
     with open(paths["png"], "rb") as f:

@@ -82,12 +82,18 @@ def values(model, batch=B, seed=0):
         "f": rng.uniform(-1, 1, (batch, nb, 6)), "minv_b": rng.uniform(-1, 1, (batch, nv, nv)),
         "cols": rng.uniform(-1, 1, (batch, nb, 6, 6)), "cols2": rng.uniform(-1, 1, (batch, nb, 6, 6)),
         "frame": model.frame_names[-1], "dt": 0.01, "x": x, "x_des": np.concatenate([q1, tan()], axis=1),
-        "Q": rng.uniform(0.5, 2, (batch, nq + nv)), "Q2": rng.uniform(0.5, 2, (batch, 2 * nv)), "R": rng.uniform(0.5, 2, (batch, nv)),
+        "Q": rng.uniform(0.5, 2, (batch, nq + nv)), "Q2": rng.uniform(0.5, 2, (batch, 2 * nv)),
+        "R": rng.uniform(0.5, 2, (batch, nv)),
         "p3": rng.uniform(-1, 1, (batch, 3)), "w3": rng.uniform(0.5, 2, (batch, 3)),
         "h6": rng.uniform(-1, 1, (batch, 6)), "w6": rng.uniform(0.5, 2, (batch, 6)),
         "q_lo": q - 1, "q_hi": q + 1, "v_lo": np.full((batch, nv), -2.0), "v_hi": np.full((batch, nv), 2.0),
         "mu": 0.1,
     }
+
+
+def one_sample(vals):
+    """the first sample of values(), without the batch axis"""
+    return {k: (x[0] if isinstance(x, np.ndarray) else x) for k, x in vals.items()}
 
 
 def call(obj, op, vals):
@@ -223,7 +229,7 @@ def test_operation_equals_rbd(request, robot, op):
         return
     fast = op in h.fast_operations()  # the engine: same maths, other summation order
     for batch in (B, None):
-        v = values(model) if batch else {k: (x[0] if isinstance(x, np.ndarray) else x) for k, x in values(model).items()}
+        v = values(model) if batch else one_sample(values(model))
         assert_same(call(h, op, v), handle_result(op, call(rbd, op, v)), rtol=1e-10 if fast else 0)
 
 
@@ -473,7 +479,7 @@ def test_fast_operations_go_to_the_engine(fake_engine, hyq, op, dtype):
     assert op in h.fast_operations()
     engine_method = ENGINE_ROUTES[op][0]
     for batch in (B, None):
-        v = values(hyq) if batch else {k: (x[0] if isinstance(x, np.ndarray) else x) for k, x in values(hyq).items()}
+        v = values(hyq) if batch else one_sample(values(hyq))
         h._engine.calls.clear()
         r = call(h, op, v)
         assert h._engine.calls == [(engine_method, batch or 1, dtype)]
