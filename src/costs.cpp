@@ -9,6 +9,17 @@ namespace rbd {
 namespace batch {
 
 namespace {
+// q (B x nq) in the convention's layout -> Pinocchio layout (a copy, or q itself)
+const double* pinocchio_configurations(const Model& m, long B, const double* q, int convention,
+                                       std::vector<double>& buf) {
+  check_configurations_in(m, B, q, "q", convention);
+  if (convention == kPinocchioConvention) return q;
+  buf.resize(B * m.nq);
+  const ModelView<double> mv = m.view();
+  for (long s = 0; s < B; ++s) configuration_from_mujoco(mv, q + s * m.nq, buf.data() + s * m.nq);
+  return buf.data();
+}
+
 void check_weights(const double* W, long n, const char* name) {
   check_finite(W, n, name);
   for (long k = 0; k < n; ++k)
@@ -30,11 +41,12 @@ void quadratic_cost(long B, int n, const double* x, const double* x_des, const d
 }
 
 void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const double* x_des, const double* Q,
-                                  double* value, double* grad, double* H) {
+                                  double* value, double* grad, double* H, int convention) {
   const int nx = m.nq + m.nv, n2 = 2 * m.nv;
+  check_convention(convention);
   for (long s = 0; s < B; ++s) {
-    check_configuration(m, x + s * nx, "x", B > 1 ? s : -1);
-    check_configuration(m, x_des + s * nx, "x_des", B > 1 ? s : -1);
+    check_configuration_in(m, x + s * nx, "x", B > 1 ? s : -1, convention);
+    check_configuration_in(m, x_des + s * nx, "x_des", B > 1 ? s : -1, convention);
   }
   check_finite(x, B * nx, "x");
   check_finite(x_des, B * nx, "x_des");
@@ -43,12 +55,15 @@ void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const
   std::vector<double> scratch(m.nv * m.nv + m.nv);
   for (long s = 0; s < B; ++s)
     value[s] = rbd::quadratic_state_cost_tangent(mv, x + s * nx, x_des + s * nx, Q + s * n2, grad + s * n2,
-                                                 H + s * n2 * n2, scratch.data());
+                                                 H + s * n2 * n2, scratch.data(), convention);
 }
 
 void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, int body,
-                 const double* offset, double* value, double* grad, double* H) {
-  check_configurations(m, B, q, "q");
+                 const double* offset, double* value, double* grad, double* H, int convention) {
+  check_convention(convention);
+  std::vector<double> qbuf;
+  const double* q_mj = q;
+  q = pinocchio_configurations(m, B, q, convention, qbuf);
   check_finite(p_des, B * 3, "p_des");
   check_weights(W, B * 3, "W");
   const int nv = m.nv, nx = m.nq + m.nv;
@@ -62,6 +77,8 @@ void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, c
   std::vector<double> pose(B * 6), G(B * 6 * nv);
   end_effector_pose(m, B, q, ee, pose.data());
   end_effector_pose_gradient(m, B, q, ee, G.data());
+  if (convention == kMujocoConvention)
+    for (long s = 0; s < B; ++s) jacobian_cols_to_mujoco(m.view(), q_mj + s * m.nq, G.data() + s * 6 * nv, 6);
   for (long s = 0; s < B; ++s) {
     double r[3];
     for (int k = 0; k < 3; ++k) r[k] = pose[s * 6 + k] - p_des[s * 3 + k];
@@ -72,14 +89,19 @@ void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, c
 }
 
 void com_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, double* value,
-              double* grad, double* H) {
-  check_configurations(m, B, q, "q");
+              double* grad, double* H, int convention) {
+  check_convention(convention);
+  std::vector<double> qbuf;
+  const double* q_mj = q;
+  q = pinocchio_configurations(m, B, q, convention, qbuf);
   check_finite(p_des, B * 3, "p_des");
   check_weights(W, B * 3, "W");
   const int nv = m.nv, nx = m.nq + m.nv;
   std::vector<double> c(B * 3), J(B * 3 * nv);
   center_of_mass(m, B, q, c.data());
   jacobian_com(m, B, q, J.data());
+  if (convention == kMujocoConvention)
+    for (long s = 0; s < B; ++s) jacobian_cols_to_mujoco(m.view(), q_mj + s * m.nq, J.data() + s * 3 * nv, 3);
   for (long s = 0; s < B; ++s) {
     double r[3];
     for (int k = 0; k < 3; ++k) r[k] = c[s * 3 + k] - p_des[s * 3 + k];
@@ -89,16 +111,25 @@ void com_cost(const Model& m, long B, const double* q, const double* p_des, cons
 }
 
 void momentum_cost(const Model& m, long B, const double* q, const double* qd, const double* h_des, const double* W,
-                   double* value, double* grad, double* H) {
-  check_configurations(m, B, q, "q");
+                   double* value, double* grad, double* H, int convention) {
+  check_convention(convention);
+  std::vector<double> qbuf;
+  const double* q_mj = q;
+  q = pinocchio_configurations(m, B, q, convention, qbuf);
   check_finite(qd, B * m.nv, "qd");
   check_finite(h_des, B * 6, "h_des");
   check_weights(W, B * 6, "W");
   const int nv = m.nv, n2 = 2 * nv;
-  std::vector<double> A(6 * nv), h(6), dA(6 * nv * nv), J(6 * n2);
+  const ModelView<double> mv = m.view();
+  std::vector<double> A(6 * nv), h(6), dA(6 * nv * nv), J(6 * n2), vbuf(nv), Jq(6 * nv);
   for (long s = 0; s < B; ++s) {
     const double* qs = q + s * m.nq;
     const double* vs = qd + s * nv;
+    if (convention == kMujocoConvention) {
+      // qd in MuJoCo's frames -> Pinocchio's
+      rotate_from_mujoco(mv, q_mj + s * m.nq, vs, vbuf.data());
+      vs = vbuf.data();
+    }
     ccrba(m, 1, qs, vs, A.data(), h.data());
     dccrba(m, 1, qs, dA.data());
     // J = [(∂A/∂q) qd | A]: column k of the first block is Σ_j dA[r][j][k] qd_j
@@ -109,6 +140,16 @@ void momentum_cost(const Model& m, long B, const double* q, const double* qd, co
         J[r * n2 + k] = acc;
         J[r * n2 + nv + k] = A[r * nv + k];
       }
+    }
+    if (convention == kMujocoConvention) {
+      // MuJoCo tangent: Jq ← (Jq + A ∂v_pin/∂δq) Cᵀ, Jv ← A Cᵀ
+      for (int r = 0; r < 6; ++r)
+        for (int k = 0; k < nv; ++k) Jq[r * nv + k] = J[r * n2 + k];
+      add_frame_dependence(mv, vs, A.data(), Jq.data(), 6);
+      jacobian_cols_to_mujoco(mv, q_mj + s * m.nq, Jq.data(), 6);
+      jacobian_cols_to_mujoco(mv, q_mj + s * m.nq, A.data(), 6);
+      for (int r = 0; r < 6; ++r)
+        for (int k = 0; k < nv; ++k) J[r * n2 + k] = Jq[r * nv + k], J[r * n2 + nv + k] = A[r * nv + k];
     }
     double res[6];
     for (int r = 0; r < 6; ++r) res[r] = h[r] - h_des[s * 6 + r];

@@ -60,6 +60,11 @@ const std::vector<AlgorithmInfo>& handle_algorithms() {
       {"com_cost", {"com_cost"}, {"com", "ccrba"}},
       {"momentum_cost", {"momentum_cost"}, {"dccrba"}},
       {"barriers", {"joint_position_barrier", "joint_velocity_barrier", "joint_torque_barrier"}, {}},
+      // conversions between the output conventions (the same in either convention)
+      {"mujoco_convention",
+       {"state_to_mujoco", "state_from_mujoco", "force_to_mujoco", "force_from_mujoco", "mujoco_integrate",
+        "mujoco_difference"},
+       {}},
   };
   return table;
 }

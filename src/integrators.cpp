@@ -23,8 +23,9 @@ int integrator_from_name(const std::string& name) {
 namespace batch {
 namespace {
 void check_step(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
-                double dt, double gravity, int type) {
-  check_configurations(m, B, q, "q");
+                double dt, double gravity, int type, int convention) {
+  check_convention(convention);
+  check_configurations_in(m, B, q, "q", convention);
   check_finite(v, B * m.nv, "qd");
   check_finite(u, B * m.nv, "u");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
@@ -44,8 +45,8 @@ void check_step(const Model& m, long B, const double* q, const double* v, const 
 }  // namespace
 
 void integrator(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
-                double dt, double gravity, int type, double* x_next) {
-  check_step(m, B, q, v, u, fext, dt, gravity, type);
+                double dt, double gravity, int type, double* x_next, int convention) {
+  check_step(m, B, q, v, u, fext, dt, gravity, type, convention);
   WorkspaceBuffer buf(m);
   const ModelView<double> mv = m.view();
   const int nq = m.nq, nv = m.nv;
@@ -53,14 +54,16 @@ void integrator(const Model& m, long B, const double* q, const double* v, const 
   for (long s = 0; s < B; ++s) {
     double* x = x_next + s * (nq + nv);
     if (!integrator_step(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
-                         fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq, scratch.data()))
+                         fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq, scratch.data(),
+                         convention))
       not_pd("integrator", s);
   }
 }
 
 void integrator_gradient(const Model& m, long B, const double* q, const double* v, const double* u,
-                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB) {
-  check_step(m, B, q, v, u, fext, dt, gravity, type);
+                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB,
+                         int convention) {
+  check_step(m, B, q, v, u, fext, dt, gravity, type, convention);
   WorkspaceBuffer buf(m);
   const ModelView<double> mv = m.view();
   const int nq = m.nq, nv = m.nv;
@@ -69,7 +72,7 @@ void integrator_gradient(const Model& m, long B, const double* q, const double* 
     double* x = x_next + s * (nq + nv);
     if (!rbd::integrator_gradient(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
                                   fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq,
-                                  AB + s * 6L * nv * nv, scratch.data()))
+                                  AB + s * 6L * nv * nv, scratch.data(), convention))
       not_pd("integrator_gradient", s);
   }
 }

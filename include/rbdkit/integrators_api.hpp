@@ -6,6 +6,7 @@
 
 #include "algorithms/integrators.hpp"
 #include "dynamics.hpp"
+#include "mujoco_api.hpp"
 
 namespace rbd {
 
@@ -15,11 +16,13 @@ namespace rbd {
 int integrator_from_name(const std::string& name);
 
 namespace batch {
-// x⁺ = [q⁺; v⁺] (B x (nq + nv)); fext (B x nb x 6) may be null
+// x⁺ = [q⁺; v⁺] (B x (nq + nv)); fext (B x nb x 6) may be null. convention
+// (OutputConvention): the layout, frames and ⊕ of q, v, u and x⁺
 void integrator(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
-                double dt, double gravity, int type, double* x_next);
-// x⁺ and [A | B] = ∂x⁺/∂(x, u) (B x 2nv x 3nv), tangent space
+                double dt, double gravity, int type, double* x_next, int convention = kPinocchioConvention);
+// x⁺ and [A | B] = ∂x⁺/∂(x, u) (B x 2nv x 3nv), in the convention's tangent space
 void integrator_gradient(const Model& m, long B, const double* q, const double* v, const double* u,
-                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB);
+                         const double* fext, double dt, double gravity, int type, double* x_next, double* AB,
+                         int convention = kPinocchioConvention);
 }  // namespace batch
 }  // namespace rbd

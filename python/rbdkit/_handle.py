@@ -83,6 +83,9 @@ ENGINE_ROUTES = {
                             (("nx",), ("2nv", "3nv")), 1),
 }
 
+# algorithms whose operations read the same in either output convention
+CONVENTION_NEUTRAL = ("mujoco_convention",)
+
 # operations whose handle result differs from the RBD method's
 RESULTS = {"inverse_dynamics": lambda r: r[0]}
 
@@ -223,7 +226,8 @@ class Handle:
         conv = kwargs.get("output_convention", self.output_convention) if accepts else self.output_convention
         if accepts:
             kwargs = {**kwargs, "output_convention": conv}
-        elif conv != "pinocchio" and not self._convention_noop:
+        elif (conv != "pinocchio" and not self._convention_noop
+              and OPERATION_ALGORITHM[op] not in CONVENTION_NEUTRAL):
             raise ValueError(f"{op}: does not support output_convention='{conv}' on a model with free-flyer or "
                              f"spherical joints; use a handle with output_convention='pinocchio'")
         if self._engine is not None and op in ENGINE_ROUTES and (conv == "pinocchio" or self._convention_noop):

@@ -4,10 +4,13 @@ dynamics and its tangent-space Jacobian [A | B].
 integrator_type: euler, semi_implicit_euler, midpoint, rk4, trapezoidal
 (explicit two-stage Heun) or constant_acceleration; see
 include/rbdkit/algorithms/integrators.hpp for the schemes.
+output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
+frames and retraction for q, qd, u, x⁺ and [A | B]; see _mujoco.py).
 """
 
 from . import _core
 from ._checks import Batch, check_scalar
+from ._mujoco import convention_code
 
 GRAVITY = -9.81
 INTEGRATORS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
@@ -32,27 +35,33 @@ class IntegratorsMixin:
     def _step_args(self, b, q, qd, u, f_ext):
         return self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u"), self._fext(b, f_ext)
 
-    def integrator(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY):
+    def integrator(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
+                   output_convention="pinocchio"):
         """x⁺ = [q⁺; qd⁺] (nq + nv,) after one step of length dt with constant
         controls u and body-local external forces f_ext."""
         t = integrator_code(integrator_type)
+        cv = convention_code(output_convention)
         dt, g = check_dt(dt), check_scalar(gravity, "gravity")
         b = Batch()
         iq, iv, iu, ifx = self._step_args(b, q, qd, u, f_ext)
         x = b.out(self.nq + self.nv)
-        _core.integrator(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx), dt, g, t, x)
+        _core.integrator(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx), dt, g, t, x,
+                         cv)
         return b.ret(x)
 
-    def integrator_gradient(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY):
+    def integrator_gradient(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
+                            output_convention="pinocchio"):
         """[A | B] = ∂x⁺/∂(x, u) (2·nv, 3·nv) in the tangent space: rows
-        [δq⁺; δqd⁺], columns [δq | δqd | δu] (δq through integrate)."""
+        [δq⁺; δqd⁺], columns [δq | δqd | δu] (δq through integrate, or
+        MuJoCo's mj_integratePos with output_convention="mujoco")."""
         t = integrator_code(integrator_type)
+        cv = convention_code(output_convention)
         dt, g = check_dt(dt), check_scalar(gravity, "gravity")
         b = Batch()
         iq, iv, iu, ifx = self._step_args(b, q, qd, u, f_ext)
         x, AB = b.out(self.nq + self.nv), b.out(2 * self.nv, 3 * self.nv)
         _core.integrator_gradient(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx), dt,
-                                  g, t, x, AB)
+                                  g, t, x, AB, cv)
         return b.ret(AB)
 
     # ---- the plant layer's state form, x = [q; qd]
@@ -63,12 +72,14 @@ class IntegratorsMixin:
         X = b.ret(b.get(ix))
         return X[..., :self.nq], X[..., self.nq:]
 
-    def plant_step(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY):
+    def plant_step(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
+                   output_convention="pinocchio"):
         """x⁺ (nq + nv,) for x = [q; qd] (nq + nv,)."""
         q, qd = self._split_state(x)
-        return self.integrator(q, qd, u, dt, integrator_type, f_ext, gravity)
+        return self.integrator(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
 
-    def plant_step_gradient(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY):
+    def plant_step_gradient(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
+                            output_convention="pinocchio"):
         """[A | B] (2·nv, 3·nv) of plant_step, tangent space."""
         q, qd = self._split_state(x)
-        return self.integrator_gradient(q, qd, u, dt, integrator_type, f_ext, gravity)
+        return self.integrator_gradient(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)

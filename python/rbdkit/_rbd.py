@@ -16,6 +16,7 @@ from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
+from ._mujoco import MujocoMixin
 from ._regressor import RegressorMixin
 from ._second_order import SecondOrderMixin
 
@@ -23,7 +24,7 @@ GRAVITY = -9.81
 
 
 class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin,
-          CentroidalMixin, SecondOrderMixin):
+          CentroidalMixin, SecondOrderMixin, MujocoMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

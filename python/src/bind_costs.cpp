@@ -24,26 +24,28 @@ void bind_costs(nb::module_& m) {
           rbd::batch::quadratic_cost(batch_of(x), width(x), x.data(), xd.data(), W.data(), v.data(), g.data(), H.data(),
                                      xn.c_str(), dn.c_str(), wn.c_str());
         });
-  m.def("quadratic_state_cost_tangent", [](const Model& md, In x, In xd, In Q, Out v, Out g, Out H) {
+  m.def("quadratic_state_cost_tangent", [](const Model& md, In x, In xd, In Q, Out v, Out g, Out H, int conv) {
     nb::gil_scoped_release r;
     rbd::batch::quadratic_state_cost_tangent(md, batch_of(x), x.data(), xd.data(), Q.data(), v.data(), g.data(),
-                                             H.data());
-  });
+                                             H.data(), conv);
+  }, "model"_a, "x"_a, "x_des"_a, "Q"_a, "value"_a, "grad"_a, "H"_a, "convention"_a = 0);
   m.def("ee_pos_cost",
-        [](const Model& md, In q, In pd, In W, int body, std::optional<In> off, Out v, Out g, Out H) {
+        [](const Model& md, In q, In pd, In W, int body, std::optional<In> off, Out v, Out g, Out H, int conv) {
           nb::gil_scoped_release r;
           rbd::batch::ee_pos_cost(md, batch_of(q), q.data(), pd.data(), W.data(), body, off ? off->data() : nullptr,
-                                  v.data(), g.data(), H.data());
+                                  v.data(), g.data(), H.data(), conv);
         },
-        "model"_a, "q"_a, "p_des"_a, "W"_a, "body"_a, "offset"_a.none(), "value"_a, "grad"_a, "H"_a);
-  m.def("com_cost", [](const Model& md, In q, In pd, In W, Out v, Out g, Out H) {
+        "model"_a, "q"_a, "p_des"_a, "W"_a, "body"_a, "offset"_a.none(), "value"_a, "grad"_a, "H"_a,
+        "convention"_a = 0);
+  m.def("com_cost", [](const Model& md, In q, In pd, In W, Out v, Out g, Out H, int conv) {
     nb::gil_scoped_release r;
-    rbd::batch::com_cost(md, batch_of(q), q.data(), pd.data(), W.data(), v.data(), g.data(), H.data());
-  });
-  m.def("momentum_cost", [](const Model& md, In q, In qd, In hd, In W, Out v, Out g, Out H) {
+    rbd::batch::com_cost(md, batch_of(q), q.data(), pd.data(), W.data(), v.data(), g.data(), H.data(), conv);
+  }, "model"_a, "q"_a, "p_des"_a, "W"_a, "value"_a, "grad"_a, "H"_a, "convention"_a = 0);
+  m.def("momentum_cost", [](const Model& md, In q, In qd, In hd, In W, Out v, Out g, Out H, int conv) {
     nb::gil_scoped_release r;
-    rbd::batch::momentum_cost(md, batch_of(q), q.data(), qd.data(), hd.data(), W.data(), v.data(), g.data(), H.data());
-  });
+    rbd::batch::momentum_cost(md, batch_of(q), q.data(), qd.data(), hd.data(), W.data(), v.data(), g.data(), H.data(),
+                              conv);
+  }, "model"_a, "q"_a, "qd"_a, "h_des"_a, "W"_a, "value"_a, "grad"_a, "H"_a, "convention"_a = 0);
   m.def("log_barrier", [](In x, In lo, In hi, double mu, Out v, Out g, Out h, const std::string& xn) {
     nb::gil_scoped_release r;
     rbd::batch::log_barrier(batch_of(x), width(x), x.data(), lo.data(), hi.data(), mu, v.data(), g.data(), h.data(),

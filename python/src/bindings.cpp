@@ -35,6 +35,7 @@ void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
 void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
+void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 
 
 namespace {
@@ -201,4 +202,5 @@ NB_MODULE(_core, m) {
   bind_centroidal(m);
   bind_second_order(m);
   bind_handle(m);
+  bind_mujoco(m);
 }

@@ -69,10 +69,17 @@ METHODS = {
     "idsva_so_world_frame": ("q", "qd", "qdd"),
     "idsva_so": ("q", "qd", "qdd"),
     "fdsva_so": ("q", "qd", "u"),
+    "state_to_mujoco": ("x",),
+    "state_from_mujoco": ("x",),
+    "force_to_mujoco": ("qpos", "u"),
+    "force_from_mujoco": ("qpos", "u"),
+    "mujoco_integrate": ("qpos", "v"),
+    "mujoco_difference": ("qpos0", "qpos1"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
-        "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols"}
+        "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols",
+        "x": "state", "qpos": "config", "qpos0": "config", "qpos1": "config"}
 OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
             ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
             ("inverse_dynamics_fpass", "f_ext"), ("inverse_dynamics_gradient_fpass_dq", "qdd"),
@@ -114,6 +121,8 @@ def valid_value(model, name, seed=0):
         return rng.uniform(-1, 1, (model.nv, model.nv))
     if kind == "cols":
         return rng.uniform(-1, 1, (model.nb, 6, 6))
+    if kind == "state":
+        return np.concatenate([model.random_configuration(rng), rng.uniform(-1, 1, model.nv)])
     return rng.uniform(-1, 1, (model.nb, 6))
 
 
@@ -131,7 +140,7 @@ def call(rbd, method, args):
 
 def width(model, name):
     return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6), "matrix": (model.nv, model.nv),
-            "cols": (model.nb, 6, 6)}[KIND[name]]
+            "cols": (model.nb, 6, 6), "state": (model.nq + model.nv,)}[KIND[name]]
 
 
 def bad_shapes(model, name):
@@ -145,6 +154,8 @@ def bad_shapes(model, name):
         return [(nv,), (nv, nq), (2, 2, nv, nv), ()]
     if kind == "cols":
         return [(nb, 6), (nb, 6, 3), (nb + 1, 6, 6), (2, 2, nb, 6, 6)]
+    if kind == "state":
+        return [(nq,), (nq + nv + 1,), (2, 2, nq + nv), (), (nq + nv, 1)]
     return [(nb, 3), (nb + 1, 6), (nb * 6,), (2, 2, nb, 6), (6, nb)]
 
 
@@ -161,7 +172,7 @@ def test_valid_arguments_work(rbd, hyq):
 @pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
 def test_wrong_shape(rbd, hyq, method, arg):
     dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}", "matrix": f"nv={hyq.nv}",
-           "cols": f"nb={hyq.nb}"}[KIND[arg]]
+           "cols": f"nb={hyq.nb}", "state": rf"nq\+nv={hyq.nq + hyq.nv}"}[KIND[arg]]
     for shape in bad_shapes(hyq, arg):
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)

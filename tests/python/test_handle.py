@@ -64,6 +64,9 @@ CALLS = {
     "joint_position_barrier": (("q", "q_lo", "q_hi", "mu"), {}),
     "joint_velocity_barrier": (("qd", "v_lo", "v_hi", "mu"), {}),
     "joint_torque_barrier": (("u", "v_lo", "v_hi", "mu"), {}),
+    "state_to_mujoco": (("x",), {}), "state_from_mujoco": (("x_mj",), {}),
+    "force_to_mujoco": (("qpos", "u"), {}), "force_from_mujoco": (("qpos", "u"), {}),
+    "mujoco_integrate": (("qpos", "v"), {}), "mujoco_difference": (("qpos", "qpos1"), {}),
 }
 
 
@@ -76,12 +79,15 @@ def values(model, batch=B, seed=0):
     q1 = np.stack([model.random_configuration(rng) for _ in range(batch)])
     qd = tan()
     x = np.concatenate([q, qd], axis=1)
+    x_des = np.concatenate([q1, tan()], axis=1)
+    x_mj, x_des_mj = rbdkit.RBD(model).state_to_mujoco(x), rbdkit.RBD(model).state_to_mujoco(x_des)
     return {
         "q": q, "q0": q, "q1": q1, "v": tan(), "qd": qd, "qdd": tan(), "tau": tan(), "u": tan(),
         "f_in": rng.uniform(-1, 1, (batch, nb, 6)), "f_ext": rng.uniform(-1, 1, (batch, nb, 6)),
         "f": rng.uniform(-1, 1, (batch, nb, 6)), "minv_b": rng.uniform(-1, 1, (batch, nv, nv)),
         "cols": rng.uniform(-1, 1, (batch, nb, 6, 6)), "cols2": rng.uniform(-1, 1, (batch, nb, 6, 6)),
-        "frame": model.frame_names[-1], "dt": 0.01, "x": x, "x_des": np.concatenate([q1, tan()], axis=1),
+        "frame": model.frame_names[-1], "dt": 0.01, "x": x, "x_des": x_des,
+        "x_mj": x_mj, "qpos": x_mj[:, :nq], "qpos1": x_des_mj[:, :nq],
         "Q": rng.uniform(0.5, 2, (batch, nq + nv)), "Q2": rng.uniform(0.5, 2, (batch, 2 * nv)),
         "R": rng.uniform(0.5, 2, (batch, nv)),
         "p3": rng.uniform(-1, 1, (batch, 3)), "w3": rng.uniform(0.5, 2, (batch, 3)),
@@ -381,6 +387,25 @@ def test_output_convention_not_supported_raises(hyq, iiwa):
     hi = rbdkit.Handle(iiwa, output_convention="mujoco")
     vi = values(iiwa)
     assert_same(hi.crba(vi["q"]), rbdkit.RBD(iiwa).crba(vi["q"]))
+
+
+def test_mujoco_convention_handle_equals_rbd(hyq):
+    # the methods that take output_convention get the handle's; the
+    # conversions work in either convention; the others raise
+    h, rbd = rbdkit.Handle(hyq, output_convention="mujoco"), rbdkit.RBD(hyq)
+    v = values(hyq)
+    qpos, u = v["qpos"], v["u"]
+    qvel = v["x_mj"][:, hyq.nq:]
+    assert_same(h.integrator(qpos, qvel, u, 0.01, "semi_implicit_euler"),
+                rbd.integrator(qpos, qvel, u, 0.01, "semi_implicit_euler", output_convention="mujoco"))
+    assert_same(h.plant_step_gradient(v["x_mj"], u, 0.01, "rk4"),
+                rbd.plant_step_gradient(v["x_mj"], u, 0.01, "rk4", output_convention="mujoco"))
+    assert_same(h.quadratic_state_cost_tangent(v["x_mj"], v["x_mj"][::-1], v["Q2"]),
+                rbd.quadratic_state_cost_tangent(v["x_mj"], v["x_mj"][::-1], v["Q2"], output_convention="mujoco"))
+    assert_same(h.state_from_mujoco(v["x_mj"]), v["x"], rtol=1e-14)
+    assert_same(h.mujoco_difference(qpos, v["qpos1"]), rbd.mujoco_difference(qpos, v["qpos1"]))
+    with pytest.raises(ValueError, match="^aba: does not support output_convention='mujoco'"):
+        h.aba(qpos, qvel, u)
 
 
 def test_output_convention_passed_through(hyq, monkeypatch):

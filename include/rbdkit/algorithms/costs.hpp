@@ -13,8 +13,11 @@
 //                                 [nv, nq) (the extra quaternion coordinates) stay zero
 //   log barriers                -mu Σ [log(x - lower) + log(upper - x)] over finite bounds;
 //                                 grad and the Hessian diagonal (same width as x)
+// In the MuJoCo convention (mujoco_convention.hpp) x is [qpos; qvel], the log
+// map is MuJoCo's ⊖ and the tangent blocks are along MuJoCo's ⊕.
 #pragma once
 
+#include "mujoco_convention.hpp"
 #include "../configuration.hpp"
 
 namespace rbd {
@@ -34,15 +37,21 @@ RBD_HD S quadratic_cost(int n, const S* x, const S* x_des, const S* Q, S* grad, 
 }
 
 // ½ eᵀ diag(Q) e for the log-map error e = [difference(q_des, q); qd - qd_des];
-// x, x_des (nq + nv), Q (2nv); grad (2nv), H (2nv x 2nv); scratch nv x nv + nv
+// x, x_des (nq + nv), Q (2nv); grad (2nv), H (2nv x 2nv); scratch nv x nv + nv.
+// convention: OutputConvention (the MuJoCo one uses mj_difference)
 template <typename S>
 RBD_HD S quadratic_state_cost_tangent(const ModelView<S>& m, const S* x, const S* x_des, const S* Q, S* grad, S* H,
-                                      S* scratch) {
+                                      S* scratch, int convention = kPinocchioConvention) {
   const int nq = m.nq, nv = m.nv, n2 = 2 * nv;
   S* J = scratch;        // ∂difference(q_des, q)/∂q (nv x nv)
   S* e = scratch + nv * nv;  // configuration error (nv)
-  difference(m, x_des, x, e);
-  ddifference(m, x_des, x, 1, J);
+  if (convention == kMujocoConvention) {
+    mj_difference(m, x_des, x, e);
+    mj_ddifference(m, x_des, x, 1, J);
+  } else {
+    difference(m, x_des, x, e);
+    ddifference(m, x_des, x, 1, J);
+  }
   S value = S(0);
   for (int i = 0; i < nv; ++i) value += S(0.5) * Q[i] * e[i] * e[i];
   for (int i = 0; i < nv; ++i) {

@@ -13,9 +13,15 @@
 // Jacobian follows the stages by the chain rule: forward-dynamics gradients
 // at each stage and the Lie-group Jacobians of ⊕ (configuration.hpp).
 // Tangent columns: [δq (nv) | δv (nv) | δu (nv)]; rows [δq⁺ (nv) | δv⁺ (nv)].
+//
+// The stage loop is written once over a convention policy (the coordinates
+// the step runs in): PinocchioStep (integrate/difference, body-frame v) or
+// MujocoStep (mujoco_convention.hpp: MuJoCo's qpos/qvel, ⊕ and frames). The
+// entry points take the convention as a trailing code (OutputConvention).
 #pragma once
 
 #include "aba_derivatives.hpp"
+#include "mujoco_convention.hpp"
 #include "../configuration.hpp"
 
 namespace rbd {
@@ -44,16 +50,61 @@ RBD_HD Tableau tableau(int type) {
   }
 }
 
-// scratch values (of type S) for one step, and for a step with its gradient
-RBD_HD long integrator_scratch_values(int nq, int nv) { return nq + 5L * nv; }
+// ---- conventions: retraction ⊕ with its Jacobians, and the acceleration
+// a(q, v, u) = d/dt v with ∂a/∂δq, ∂a/∂v, ∂a/∂u (nv x nv each)
+
+// Pinocchio's: integrate (SE(3)/SO(3) exponential), body-frame velocities
+template <typename S> struct PinocchioStep {
+  RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { integrate(m, q, d, out); }
+  RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
+    dintegrate(m, q, d, arg, J);
+  }
+  RBD_HD static bool acceleration(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
+                                  const S* fext, S gravity, S* a, S*) {
+    return aba(m, w, q, v, u, fext, gravity, a);
+  }
+  RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                              const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu, S*) {
+    if (!aba_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv)) return false;
+    // ∂a/∂u = M⁻¹: aba_derivatives left M⁻¹ (or the Cholesky factor with mimic joints) in w.dense
+    const int nv = m.nv;
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) Fu[r * nv + c] = r == c ? S(-1) : S(0);
+    apply_neg_minv(m, w, Fu, nv);
+    return true;
+  }
+};
+
+// MuJoCo's: mj_integratePos, qvel = [ṗ world; ω body] on free joints
+template <typename S> struct MujocoStep {
+  RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { mj_integrate(m, q, d, out); }
+  RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
+    mj_dintegrate(m, q, d, arg, J);
+  }
+  RBD_HD static bool acceleration(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
+                                  const S* fext, S gravity, S* a, S* scratch) {
+    return mujoco_acceleration(m, w, q, v, u, fext, gravity, a, scratch);
+  }
+  RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                              const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu,
+                                              S* scratch) {
+    return mujoco_acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
+  }
+};
+
+// scratch values (of type S) for one step, and for a step with its gradient (either convention)
+RBD_HD long integrator_scratch_values(int nq, int nv) {
+  return nq + 5L * nv + mujoco_acceleration_scratch_values(nq, nv);
+}
 RBD_HD long integrator_gradient_scratch_values(int nq, int nv) {
-  return integrator_scratch_values(nq, nv) + 28L * nv * nv;
+  return integrator_scratch_values(nq, nv) + 29L * nv * nv;
 }
 
-// x⁺ = (q⁺ (nq), v⁺ (nv)) written to q_next, v_next. false if M is not PD
-template <typename S>
-RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v, const S* u,
-                            const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch) {
+// x⁺ = (q⁺ (nq), v⁺ (nv)) written to q_next, v_next, in the coordinates of
+// the convention Conv. false if M is not PD
+template <typename Conv, typename S>
+RBD_HD bool integrator_step_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                 const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch) {
   const int nq = m.nq, nv = m.nv;
   S* qs = scratch;             // stage configuration (nq)
   S* vs = qs + nq;             // stage velocity (nv)
@@ -61,14 +112,15 @@ RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, co
   S* vsum = as + nv;           // Σ b_s v_s (nv)
   S* asum = vsum + nv;         // Σ b_s a_s (nv)
   S* step = asum + nv;         // tangent step (nv)
+  S* cs = step + nv;           // the convention's scratch
   if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
-    if (!aba(m, w, q, v, u, fext, gravity, as)) return false;
+    if (!Conv::acceleration(m, w, q, v, u, fext, gravity, as, cs)) return false;
     for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
     for (int k = 0; k < nv; ++k)
       step[k] = type == kEuler ? dt * v[k]
               : type == kSemiImplicitEuler ? dt * v_next[k]
               : dt * v[k] + S(0.5) * dt * dt * as[k];
-    integrate(m, q, step, q_next);
+    Conv::retract(m, q, step, q_next);
     return true;
   }
   // full-state explicit stages
@@ -83,14 +135,24 @@ RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, co
       const S c = S(T.c[s]) * dt;
       for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
       for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
-      integrate(m, q, step, qs);
+      Conv::retract(m, q, step, qs);
     }
-    if (!aba(m, w, qs, vs, u, fext, gravity, as)) return false;
+    if (!Conv::acceleration(m, w, qs, vs, u, fext, gravity, as, cs)) return false;
     for (int k = 0; k < nv; ++k) vsum[k] += S(T.b[s]) * vs[k], asum[k] += S(T.b[s]) * as[k];
   }
   for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
-  integrate(m, q, step, q_next);
+  Conv::retract(m, q, step, q_next);
   return true;
+}
+
+// the step in the given convention (OutputConvention; default Pinocchio's)
+template <typename S>
+RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v, const S* u,
+                            const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch,
+                            int convention = kPinocchioConvention) {
+  if (convention == kMujocoConvention)
+    return integrator_step_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, scratch);
+  return integrator_step_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, scratch);
 }
 
 // C (r x c) = A (r x n) B (n x c), row-major; C may not alias A or B
@@ -106,11 +168,12 @@ template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, in
   }
 }
 
-// x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major). false if M is not PD.
-template <typename S>
-RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
-                                const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
-                                S* scratch) {
+// x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major) in the tangent of the
+// convention Conv. false if M is not PD.
+template <typename Conv, typename S>
+RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                     const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
+                                     S* scratch) {
   const int nq = m.nq, nv = m.nv, n3 = 3 * nv;
   const long nn = static_cast<long>(nv) * nv;
   S* qs = scratch;
@@ -119,6 +182,7 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
   S* vsum = as + nv;
   S* asum = vsum + nv;
   S* step = asum + nv;
+  S* cs = step + nv;  // the convention's scratch
   S* mat = scratch + integrator_scratch_values(nq, nv);
   // per stage: ∂q_s, ∂v_s, ∂a_s with respect to [δq | δv | δu] (nv x 3nv each)
   S* Dq = mat;            // nv x 3nv
@@ -133,25 +197,22 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
   S* Jv = Jq + nn;         // dIntegrate/dv
   S* T1 = Jv + nn;         // nv x 3nv temporaries
   S* T2 = T1 + 3 * nn;
+  S* Fu = T2 + 3 * nn;     // ∂a/∂u at the stage (nv x nv)
 
-  // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 M⁻¹]
+  // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 Fu]
   auto stage_acceleration = [&](const S* qq, const S* vv) -> bool {
-    if (!aba_derivatives(m, w, qq, vv, u, fext, gravity, as, Fq, Fv)) return false;
+    if (!Conv::acceleration_derivatives(m, w, qq, vv, u, fext, gravity, as, Fq, Fv, Fu, cs)) return false;
     matmul(Fq, Dq, Da, nv, nv, n3);
     matmul(Fv, Dv, T1, nv, nv, n3);
     for (long k = 0; k < 3 * nn; ++k) Da[k] += T1[k];
-    // ∂a/∂u = M⁻¹: aba_derivatives left M⁻¹ (or the Cholesky factor with mimic joints) in w.dense
     for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) T1[r * nv + c] = r == c ? S(1) : S(0);
-    apply_neg_minv(m, w, T1, nv);  // -M⁻¹
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) Da[r * n3 + 2 * nv + c] -= T1[r * nv + c];
+      for (int c = 0; c < nv; ++c) Da[r * n3 + 2 * nv + c] += Fu[r * nv + c];
     return true;
   };
   // ∂(q ⊕ w) for a step w with derivative Dw: Jq [1 0 0] + Jv Dw, written to out
   auto retract_derivative = [&](const S* w_step, const S* Dw, S* out) {
-    dintegrate(m, q, w_step, 0, Jq);
-    dintegrate(m, q, w_step, 1, Jv);
+    Conv::dretract(m, q, w_step, 0, Jq);
+    Conv::dretract(m, q, w_step, 1, Jv);
     matmul(Jv, Dw, out, nv, nv, n3);
     for (int r = 0; r < nv; ++r)
       for (int c = 0; c < nv; ++c) out[r * n3 + c] += Jq[r * nv + c];
@@ -183,7 +244,7 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
     } else {
       for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
     }
-    integrate(m, q, step, q_next);
+    Conv::retract(m, q, step, q_next);
     retract_derivative(step, T2, T1);
     for (int r = 0; r < nv; ++r)
       for (int c = 0; c < n3; ++c) {
@@ -203,7 +264,7 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
     // q_s = q ⊕ c v_(s-1), v_s = v + c a_(s-1)
     for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
     for (long k = 0; k < 3 * nn; ++k) T2[k] = c * Dv[k];
-    integrate(m, q, step, qs);
+    Conv::retract(m, q, step, qs);
     retract_derivative(step, T2, Dq);
     for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
     for (long k = 0; k < 3 * nn; ++k) Dv[k] = c * Da[k];
@@ -216,7 +277,7 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
   // q⁺ = q ⊕ dt Σ b v_s, v⁺ = v + dt Σ b a_s
   for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
   for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dvsum[k];
-  integrate(m, q, step, q_next);
+  Conv::retract(m, q, step, q_next);
   retract_derivative(step, T2, T1);
   for (int r = 0; r < nv; ++r)
     for (int c = 0; c < n3; ++c) {
@@ -224,6 +285,18 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
       AB[(nv + r) * n3 + c] = dt * Dasum[r * n3 + c] + (c == nv + r ? S(1) : S(0));
     }
   return true;
+}
+
+// the step and its gradient in the given convention (OutputConvention; default Pinocchio's)
+template <typename S>
+RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
+                                S* scratch, int convention = kPinocchioConvention) {
+  if (convention == kMujocoConvention)
+    return integrator_gradient_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                   scratch);
+  return integrator_gradient_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                    scratch);
 }
 
 }  // namespace rbd
