@@ -3,7 +3,11 @@
 
     report.py RESULTS.json [--csv OUT.csv] [--time cpu|real]
 
-Benchmarks are named <library>/<operation>/<robot>. For each (robot,
+Benchmarks are named <library>/<operation>/<robot> (the single-call table
+below); the batched ones, <impl>/<robot>/<op>/<dtype>/B<B>/T<threads>, are
+reported by rbdkit.benchreport (python/rbdkit/benchreport.py, loaded from the
+source tree: no installed rbdkit needed) after it, with its CSV, JSON and PNG
+next to --csv. For each (robot,
 operation) the time is the minimum over the repetitions (the least disturbed
 on a shared machine); the median is kept in the CSV, and the table's "noise"
 column is the larger median/min - 1 of the two libraries. ratio =
@@ -45,6 +49,21 @@ def load(path, key):
     return doc.get("context", {}), runs, order, nv
 
 
+def batched_report(path, out_dir):
+    """the batched table (rbdkit.benchreport) when the JSON has batched runs; True if it had"""
+    import importlib.util
+    here = os.path.dirname(os.path.abspath(__file__))
+    spec = importlib.util.spec_from_file_location(
+        "benchreport", os.path.join(here, os.pardir, "python", "rbdkit", "benchreport.py"))
+    br = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(br)
+    if not br.parse(path)[1]:
+        return False
+    print("\nbatched: rbdkit vs Pinocchio per knot point")
+    br.report(path, os.path.join(out_dir, "batched") if out_dir else None)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("json")
@@ -54,7 +73,10 @@ def main():
     args = ap.parse_args()
 
     ctx, runs, order, nv = load(args.json, args.time + "_time")
+    batched_dir = os.path.dirname(os.path.abspath(args.csv)) if args.csv else None
     if not runs:
+        if batched_report(args.json, batched_dir):
+            return
         sys.exit(f"report: no <library>/<operation>/<robot> benchmarks in {args.json}")
 
     # robots and operations in registration order (the JSON's order is
@@ -113,6 +135,7 @@ def main():
                 w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else ("" if v is None else v))
                             for k, v in r.items()})
         print(f"csv: {args.csv}")
+    batched_report(args.json, batched_dir)
 
 
 if __name__ == "__main__":

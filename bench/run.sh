@@ -3,6 +3,8 @@
 # table (bench/README.md). Needs libbenchmark-dev and the `pin` wheel.
 #   bench/run.sh [extra Google Benchmark flags, e.g. --benchmark_filter=aba]
 # Environment: PYTHON (python3), JOBS (build jobs, 2), REPS (repetitions, 5),
+#   BENCH_JSON (where the JSON goes, build/bench/results.json), BENCH_REPORT=0
+#   (no table: `rbdkit bench` reports itself),
 #   MIN_TIME (seconds per repetition, 0.2), PINOCCHIO_INLINE=1 (compile
 #   Pinocchio's algorithms here instead of calling its shared library; builds
 #   in build/bench-inline).
@@ -59,10 +61,12 @@ echo "bench: build took $(( $(date +%s) - t0 )) s (-j $JOBS)"
 
 # ---- run: interleaved repetitions, all of them kept in the JSON, the
 # minimum reported (the machine is shared: the minimum is the least disturbed)
-JSON="$BUILD/results.json"
+JSON="${BENCH_JSON:-$BUILD/results.json}"
 echo "bench: running ($REPS repetitions x ${MIN_TIME}s per benchmark, interleaved)"
 "$BUILD/bench/rbdkit_bench" \
   --benchmark_repetitions="$REPS" --benchmark_min_time="$MIN_TIME" \
   --benchmark_enable_random_interleaving=true --benchmark_display_aggregates_only=true \
   --benchmark_out="$JSON" --benchmark_out_format=json "$@" >"$BUILD/console.txt"
-"$PY" "$ROOT/bench/report.py" "$JSON" --csv "$BUILD/results/latest.csv"
+if [[ "${BENCH_REPORT:-1}" != 0 ]]; then
+  "$PY" "$ROOT/bench/report.py" "$JSON" --csv "$BUILD/results/latest.csv"
+fi

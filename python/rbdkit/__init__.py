@@ -8,12 +8,15 @@ optimization and learning.
 
 Every RBD method takes one sample (q of shape (nq,)) or a batch with the
 batch on axis 0 (q of shape (B, nq)) and returns results to match.
-Conventions: docs/conventions.md.
+A Handle (rbdkit.Handle(model, algorithms=...)) is built with a chosen set
+of algorithms, a precision and a thread count, and runs the same operations
+on batched arrays. Conventions: docs/conventions.md.
 """
 
 from ._model import Model
 from ._rbd import RBD
+from ._handle import Handle
 from . import robots
 
-__all__ = ["Model", "RBD", "robots"]
+__all__ = ["Model", "RBD", "Handle", "robots"]
 __version__ = "0.1.0"

@@ -3,10 +3,15 @@
     rbdkit                      report on the bundled iiwa14 (the main job)
     rbdkit report [--robot NAME|PATH] [--floating-base]
     rbdkit robots               list the bundled robots
+    rbdkit bench [--robots iiwa,hyq] [--ops rnea,aba] [--batch 0,64] [--threads 1,2] [--quick]
+                 [--out DIR] [--json FILE] [-- Google Benchmark flags]
+                                rbdkit vs Pinocchio per knot point (bench/run.sh of the
+                                source checkout), table + CSV + JSON + PNG
 """
 
 import argparse
 import os
+import subprocess
 import sys
 
 import numpy as np
@@ -83,6 +88,90 @@ def report(robot="iiwa", floating_base=False, seed=0, out=sys.stdout):
     return 0
 
 
+# the benchmark scripts, first found wins: the batched benchmark's, then the
+# single-call one's (both build in build/bench and take Google Benchmark flags)
+BENCH_SCRIPTS = ("bench/run_batch.sh", "bench/run.sh")
+
+
+def source_dir():
+    """the source checkout holding bench/run.sh: $RBDKIT_SOURCE_DIR, the one
+    this package was built from (_build_info.py, written by CMake), or the
+    tree this module sits in (python/rbdkit/); None when none has it"""
+    candidates = [os.environ.get("RBDKIT_SOURCE_DIR")]
+    try:
+        from . import _build_info
+        candidates.append(_build_info.SOURCE_DIR)
+    except ImportError:
+        pass
+    candidates.append(os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir))
+    for c in candidates:
+        if c and os.path.isfile(os.path.join(c, "bench", "run.sh")):
+            return os.path.abspath(c)
+    return None
+
+
+def _csv_list(text, name, choices=None, kind=str, minimum=None):
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    if not items:
+        raise ValueError(f"--{name}: expected a comma-separated list, got {text!r}")
+    out = []
+    for t in items:
+        if kind is int:
+            if not t.isdigit() or (minimum is not None and int(t) < minimum):
+                raise ValueError(f"--{name}: expected integers >= {minimum}, got {t!r}")
+            out.append(int(t))
+        else:
+            if choices and t not in choices:
+                raise ValueError(f"--{name}: unknown {name[:-1] if name.endswith('s') else name} {t!r}; "
+                                 f"expected some of {', '.join(choices)}")
+            out.append(t)
+    return out
+
+
+def bench_filter(robots=None, ops=None, batch=None, threads=None):
+    """the --benchmark_filter regex selecting <impl>/<robot>/<op>/<dtype>/B<B>/T<threads>"""
+    alt = lambda xs, any_: "(" + "|".join(str(x) for x in xs) + ")" if xs else any_
+    return (f"^(rbdkit|pinocchio)/{alt(robots, '[^/]+')}/{alt(ops, '[^/]+')}/(f64|f32)/"
+            f"B{alt(batch, '[0-9]+')}/T{alt(threads, '[0-9]+')}(/|$)")
+
+
+def bench(args, extra):
+    """rbdkit bench: run bench/run.sh (or read --json) and report"""
+    from . import benchreport
+    out = os.path.abspath(args.out)
+    if args.json:
+        if not os.path.isfile(args.json):
+            raise FileNotFoundError(f"--json: no file at '{args.json}'")
+        benchreport.report(args.json, out, png=not args.no_png)
+        return 0
+    robots_ = _csv_list(args.robots, "robots", benchreport.ROBOTS) if args.robots else None
+    ops = _csv_list(args.ops, "ops", benchreport.OPS) if args.ops else None
+    batch = _csv_list(args.batch, "batch", kind=int, minimum=0) if args.batch else None
+    threads = _csv_list(args.threads, "threads", kind=int, minimum=1) if args.threads else None
+    src = source_dir()
+    if src is None:
+        raise FileNotFoundError("rbdkit bench needs the rbdkit source checkout (bench/run.sh): set "
+                                "RBDKIT_SOURCE_DIR to it, or pip install rbdkit from a checkout")
+    os.makedirs(out, exist_ok=True)
+    raw = os.path.join(out, "benchmark.json")
+    env = dict(os.environ, BENCH_JSON=raw, BENCH_REPORT="0", PYTHON=os.environ.get("PYTHON", sys.executable))
+    if args.quick:
+        env.update(REPS=env.get("REPS", "1"), MIN_TIME=env.get("MIN_TIME", "0.05"))
+    script = next(os.path.join(src, s) for s in BENCH_SCRIPTS if os.path.isfile(os.path.join(src, s)))
+    # the last --benchmark_out wins: ours, whatever the script sets
+    cmd = ["bash", script, f"--benchmark_filter={bench_filter(robots_, ops, batch, threads)}", *extra,
+           f"--benchmark_out={raw}", "--benchmark_out_format=json"]
+    print("rbdkit bench: " + " ".join(cmd), flush=True)
+    rc = subprocess.run(cmd, env=env).returncode
+    if rc != 0:
+        print(f"rbdkit: error: {os.path.relpath(script, src)} failed (exit status {rc})", file=sys.stderr)
+        return rc
+    if not os.path.isfile(raw):
+        raise FileNotFoundError(f"{os.path.relpath(script, src)} wrote no results at '{raw}'")
+    benchreport.report(raw, out, png=not args.no_png)
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="rbdkit", description="rigid-body dynamics for robots")
     sub = parser.add_subparsers(dest="cmd")
@@ -91,6 +180,25 @@ def main(argv=None):
     r.add_argument("--floating-base", action="store_true", help="add a free-flyer root joint")
     r.add_argument("--seed", type=int, default=0)
     sub.add_parser("robots", help="list the bundled robots")
+    bp = sub.add_parser("bench", help="rbdkit vs Pinocchio per knot point: table, CSV, JSON, PNG",
+                        description="Runs bench/run_batch.sh (else bench/run.sh) of the source checkout (extra "
+                                    "Google Benchmark flags after --) and reports ns per knot point with the "
+                                    "rbdkit/Pinocchio ratio.")
+    bp.add_argument("--robots", help="comma-separated: iiwa, hyq, atlas, hyq_floating, atlas_floating (default all)")
+    bp.add_argument("--ops", help="comma-separated: rnea, crba, minv, aba, rnea_derivatives, aba_derivatives, "
+                                  "integrator_rk4, integrator_gradient_rk4 (default all)")
+    bp.add_argument("--batch", help="comma-separated batch sizes, 0 = single call (default all: 0,1,16,64,256,1024)")
+    bp.add_argument("--threads", help="comma-separated thread counts (default all: 1,2)")
+    bp.add_argument("--quick", action="store_true", help="one short repetition per benchmark (REPS=1, MIN_TIME=0.05)")
+    bp.add_argument("--out", default="rbdkit-bench", help="output folder (default ./rbdkit-bench)")
+    bp.add_argument("--json", help="report this Google Benchmark JSON instead of running the benchmark")
+    bp.add_argument("--no-png", action="store_true", help="skip the figure")
+    if argv is None:
+        argv = sys.argv[1:]
+    extra = []
+    if "--" in argv:
+        k = argv.index("--")
+        argv, extra = argv[:k], argv[k + 1:]
     args = parser.parse_args(argv)
     try:
         if args.cmd == "robots":
@@ -98,6 +206,8 @@ def main(argv=None):
                 m = robots.load(n)
                 print(f"{n:8s} nq={m.nq:3d} nv={m.nv:3d}  {robots.path(n)}")
             return 0
+        if args.cmd == "bench":
+            return bench(args, extra)
         if args.cmd is None:
             return report()
         return report(args.robot, args.floating_base, args.seed)

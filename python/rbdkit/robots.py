@@ -27,3 +27,10 @@ def path(name):
 def load(name, floating_base=False):
     """load a bundled robot by name ('iiwa' (or 'iiwa14'), 'hyq', 'atlas')"""
     return Model.from_urdf(path(name), floating_base=floating_base)
+
+
+def handle(name, floating_base=False, **kw):
+    """an rbdkit.Handle of a bundled robot; keywords as rbdkit.Handle
+    (algorithms, backend, dtype, threads, output_convention)"""
+    from ._handle import Handle
+    return Handle(load(name, floating_base=floating_base), **kw)
