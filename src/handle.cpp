@@ -228,6 +228,17 @@ void Handle::plant_step_gradient(long B, const double* x, const double* u, const
                              x_next.data(), AB);
 }
 
+void Handle::plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type,
+                                double* x_next, double* AB, double* H) {
+  require("plant_step_hessian");
+  split_state(model_, B, x, scratch_);
+  const long nq = model_.nq, nv = model_.nv;
+  std::vector<double> x_own, AB_own;
+  if (!x_next) x_own.resize(static_cast<size_t>(B * (nq + nv))), x_next = x_own.data();
+  if (!AB) AB_own.resize(static_cast<size_t>(B * 6 * nv * nv)), AB = AB_own.data();
+  batch::plant_step_hessian(model_, B, scratch_.data(), scratch_.data() + B * nq, u, dt, gravity, type, x_next, AB, H);
+}
+
 // ---- costs and barriers
 
 void Handle::quadratic_state_cost(long B, const double* x, const double* x_des, const double* Q, double* value,

@@ -205,6 +205,13 @@ TEST_P(HandleCalls, EqualTheBatchEntryPoints) {
     same(AB, AB_ref, "integrator_gradient");
     h.plant_step_gradient(B, s.x.data(), s.u.data(), nullptr, 0.01, -9.81, type, ABp.data());
     same(ABp, AB_ref, "plant_step_gradient");
+    // the step Hessian: H from the batch entry point, AB equal to the gradient's
+    auto H = buf(18 * nv * nv * nv), H_ref = buf(18 * nv * nv * nv), ABh = buf(6 * nv * nv);
+    h.plant_step_hessian(B, s.x.data(), s.u.data(), 0.01, -9.81, type, nullptr, ABh.data(), H.data());
+    rbd::batch::plant_step_hessian(m, B, s.q.data(), s.qd.data(), s.u.data(), 0.01, -9.81, type, x_ref.data(),
+                                   AB_ref.data(), H_ref.data());
+    same(H, H_ref, "plant_step_hessian");
+    same(ABh, AB_ref, "plant_step_hessian AB");
   }
 
   // ---- costs and barriers
