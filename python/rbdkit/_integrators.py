@@ -5,7 +5,7 @@ integrator_type: euler, semi_implicit_euler, midpoint, rk4, trapezoidal
 (explicit two-stage Heun) or constant_acceleration; see
 include/rbdkit/algorithms/integrators.hpp for the schemes.
 output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
-frames and retraction for q, qd, u, x⁺ and [A | B]; see _mujoco.py).
+frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see _mujoco.py).
 """
 
 import numpy as np
