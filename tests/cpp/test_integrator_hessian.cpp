@@ -137,7 +137,8 @@ TEST(StepHessianConventions, BitIdenticalWithoutFreeOrBallJoints) {
     const Model m = Model::from_urdf_file(c.path, c.floating);
     const ModelView<double> mv = m.view();
     bool quaternions = false;
-    for (int i = 0; i < m.nb(); ++i) quaternions = quaternions || mv.body[i].type == kFree || mv.body[i].type == kSpherical;
+    for (int i = 0; i < m.nb(); ++i)
+      quaternions = quaternions || mv.body[i].type == kFree || mv.body[i].type == kSpherical;
     if (quaternions) continue;  // the conventions differ there (checked above against nested duals)
     SCOPED_TRACE(c.path);
     ++checked;

@@ -377,7 +377,8 @@ RBD_HD void tensors_to_mujoco(const ModelView<S>& m, const S* q_mj, const S* v, 
       const Mat3<S> R = free_rotation_mj(b, q_mj);
       const Vec3<S> vl = load3(v + o, 1), ul = load3(u + o, 1);
       // Φᵀ on the rows, then on the columns
-      for (int c = 0; c < n3; ++c) free_input_transpose(o, R, vl, ul, Mf + c, Mf + nv * n3 + c, Mf + 2 * nv * n3 + c, n3);
+      for (int c = 0; c < n3; ++c)
+        free_input_transpose(o, R, vl, ul, Mf + c, Mf + nv * n3 + c, Mf + 2 * nv * n3 + c, n3);
       for (int r = 0; r < n3; ++r) {
         S* z = Mf + r * n3;
         free_input_transpose(o, R, vl, ul, z, z + nv, z + 2 * nv, 1);
