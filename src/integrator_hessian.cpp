@@ -7,13 +7,15 @@
 
 #include "rbdkit/algorithms/integrator_hessian.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/mujoco_api.hpp"
 
 namespace rbd {
 namespace batch {
 
 void plant_step_hessian(const Model& m, long B, const double* q, const double* v, const double* u, double dt,
-                        double gravity, int type, double* x_next, double* AB, double* H) {
-  check_configurations(m, B, q, "q");
+                        double gravity, int type, double* x_next, double* AB, double* H, int convention) {
+  check_convention(convention);
+  check_configurations_in(m, B, q, "q", convention);
   check_finite(v, B * m.nv, "qd");
   check_finite(u, B * m.nv, "u");
   check_finite(&gravity, 1, "gravity");
@@ -31,7 +33,7 @@ void plant_step_hessian(const Model& m, long B, const double* q, const double* v
   for (long s = 0; s < B; ++s) {
     double* x = x_next + s * (nq + nv);
     if (!integrator_hessian(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv, dt, gravity, x, x + nq,
-                            AB + s * n_ab, H + s * n_h, scratch.data())) {
+                            AB + s * n_ab, H + s * n_h, scratch.data(), convention)) {
       std::ostringstream os;
       os << "plant_step_hessian: the mass matrix is not positive definite at sample " << s;
       throw std::runtime_error(os.str());

@@ -25,9 +25,11 @@ void integrator_gradient(const Model& m, long B, const double* q, const double* 
                          const double* fext, double dt, double gravity, int type, double* x_next, double* AB,
                          int convention = kPinocchioConvention);
 // x⁺ (B x (nq + nv)), AB (B x 2nv x 3nv) and the step Hessian H (B x 2nv x 3nv x 3nv),
-// H[i, j, k] = ∂²ψ_i/∂z_j∂z_k as defined in algorithms/integrator_hessian.hpp; no
-// external forces (src/integrator_hessian.cpp)
+// H[i, j, k] = ∂²ψ_i/∂z_j∂z_k as defined in algorithms/integrator_hessian.hpp, in the
+// convention's coordinates and tangent (as integrator_gradient); no external forces
+// (src/integrator_hessian.cpp)
 void plant_step_hessian(const Model& m, long B, const double* q, const double* v, const double* u, double dt,
-                        double gravity, int type, double* x_next, double* AB, double* H);
+                        double gravity, int type, double* x_next, double* AB, double* H,
+                        int convention = kPinocchioConvention);
 }  // namespace batch
 }  // namespace rbd

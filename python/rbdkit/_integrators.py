@@ -5,7 +5,7 @@ integrator_type: euler, semi_implicit_euler, midpoint, rk4, trapezoidal
 (explicit two-stage Heun) or constant_acceleration; see
 include/rbdkit/algorithms/integrators.hpp for the schemes.
 output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
-frames and retraction for q, qd, u, x⁺ and [A | B]; see _mujoco.py).
+frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see _mujoco.py).
 """
 
 import numpy as np
@@ -86,18 +86,23 @@ class IntegratorsMixin:
         q, qd = self._split_state(x)
         return self.integrator_gradient(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
 
-    def plant_step_hessian(self, x, u, dt, integrator_type="euler", gravity=GRAVITY):
+    def plant_step_hessian(self, x, u, dt, integrator_type="euler", gravity=GRAVITY, output_convention="pinocchio"):
         """H (2·nv, 3·nv, 3·nv): the second-order sensitivity of plant_step.
 
-        With z = [δq; δqd; δu] (3·nv), the input q = integrate(q0, δq),
-        qd = qd0 + δqd, u = u0 + δu, and the output read in the chart at the
-        nominal output, ψ(z) = [difference(q⁺(0), q⁺(z)); qd⁺(z) - qd⁺(0)],
-        H[i, j, k] = ∂²ψ_i/∂z_j∂z_k (symmetric in j, k), so that
-        x⁺(z) = x⁺(0) ⊕ (AB z + ½ H[z, z] + O(|z|³)) with AB = plant_step_gradient.
-        Every integrator_type; batched: (B, 2·nv, 3·nv, 3·nv). No f_ext
-        argument (the second-order forward dynamics take no external forces).
+        With z = [δq; δqd; δu] (3·nv), the input q = q0 ⊕ δq, qd = qd0 + δqd,
+        u = u0 + δu, and the output read in the chart at the nominal output,
+        ψ(z) = [q⁺(z) ⊖ q⁺(0); qd⁺(z) - qd⁺(0)], H[i, j, k] = ∂²ψ_i/∂z_j∂z_k
+        (symmetric in j, k), so that x⁺(z) = x⁺(0) ⊕ (AB z + ½ H[z, z] + O(|z|³))
+        with AB = plant_step_gradient (same convention). ⊕ / ⊖: integrate /
+        difference, or with output_convention="mujoco" MuJoCo's mj_integratePos
+        / mj_differentiatePos with x, u in MuJoCo's qpos/qvel layout and frames
+        (the second derivatives of the map plant_step(..., output_convention=
+        "mujoco") computes, in the tangent of plant_step_gradient's). Every
+        integrator_type; batched: (B, 2·nv, 3·nv, 3·nv). No f_ext argument
+        (the second-order forward dynamics take no external forces).
         """
         t = integrator_code(integrator_type)
+        cv = convention_code(output_convention)
         dt, g = check_dt(dt), check_scalar(gravity, "gravity")
         nq, nv = self.nq, self.nv
         b = Batch()
@@ -109,5 +114,5 @@ class IntegratorsMixin:
             raise ValueError(f"x{f'[{s}]' if b.batched else ''}: expected finite values")
         xn, AB, H = b.out(nq + nv), b.out(2 * nv, 3 * nv), b.out(2 * nv, 3 * nv, 3 * nv)
         _core.plant_step_hessian(self._m, np.ascontiguousarray(X[:, :nq]), np.ascontiguousarray(X[:, nq:]), b.get(iu),
-                                 dt, g, t, xn, AB, H)
+                                 dt, g, t, xn, AB, H, cv)
         return b.ret(H)

@@ -19,7 +19,10 @@ compared with rbdkit in the MuJoCo convention:
     motor actuators on the hinge/slide joints, the free/ball columns by central
     differences of mj_step with qfrc_applied; for RK4 (which mjd_transitionFD
     does not support), midpoint and constant acceleration: central differences
-    of the MuJoCo-built step in MuJoCo's tangent.
+    of the MuJoCo-built step in MuJoCo's tangent;
+  - the step Hessian (semi_implicit_euler, floating HyQ) contracted with a few
+    tangent directions equals central differences of mjd_transitionFD's
+    [A | B] at states moved along them with mj_integratePos.
 Within rbdkit: the two conventions describe the same motion (state
 conversions, an Euler step at zero base rotation rate, fine-step
 trajectories for every scheme), a no-op without free/ball joints, [A | B]
@@ -430,6 +433,78 @@ def test_gradient_equals_mujoco_built_differences(case, scheme):
     assert x0.shape == (nq + nv,)
 
 
+# ------------------------------------------------------------ the step Hessian against MuJoCo
+
+
+def mj_transition(mc, iq, iv, iu, q, v, u, eps=1e-4):
+    """MuJoCo's [A | B] (mjd_transitionFD, centred) at (q, v, u) in our order:
+    (2nv, 2nv + nu), B w.r.t. ctrl = u on the hinge/slide dofs (qfrc_applied the rest)"""
+    m, nv = mc.m, len(iv)
+    qfrc = u.copy()
+    qfrc[iu] = 0.0
+    mj_set(mc, iq, iv, q, v, qfrc=qfrc, ctrl=u[iu])
+    A, B = np.zeros((2 * nv, 2 * nv)), np.zeros((2 * nv, m.nu))
+    mujoco.mjd_transitionFD(m, mc.d, eps, True, A, B, None, None)
+    rows = np.concatenate([iv, nv + iv])
+    return np.concatenate([A[np.ix_(rows, rows)], B[rows]], axis=1)
+
+
+def test_step_hessian_equals_differences_of_mjd_transition_fd():
+    # MuJoCo's Euler = our semi_implicit_euler, on the floating HyQ with its base
+    # spinning: central differences of mjd_transitionFD's [A | B] at states
+    # x ⊕ ±h d (q through mj_integratePos, qvel and the forces additive) along a
+    # few tangent directions d, against H contracted with d. MuJoCo's A at the
+    # moved state is read in the charts there: on a quaternion's rows the output
+    # chart turns by Jr(φ) ≈ I - ½[φ]× (φ = (AB d) on those rows), on its columns
+    # the input chart by Jr⁻¹ ≈ I + ½[t d_θ]×, so
+    #   d/dt G(x ⊕ t d) = H·d - ½ φ × AB (quaternion rows) + ½ AB[:, θ] (d_θ × e_j) (quaternion columns j)
+    path = os.path.join(ROBOTS_DIR, "hyq.urdf")
+    model = rbdkit.Model.from_urdf(path, floating_base=True)
+    rbd = rbdkit.RBD(model)
+    dt = 0.01
+    mc = MjCase(path, True, dt=dt)
+    iq, iv, iu = mc.maps(model)
+    nq, nv = model.nq, model.nv
+    q, v, u = mj_state(rbd, 21)
+    v[3:6] = [4.0, -3.0, 3.5]  # ω, body frame
+    x = np.concatenate([q, v])
+    H = rbd.plant_step_hessian(x, u, dt, "semi_implicit_euler", output_convention="mujoco")
+    AB = rbd.plant_step_gradient(x, u, dt, "semi_implicit_euler", output_convention="mujoco")
+    cols = np.concatenate([np.arange(2 * nv), 2 * nv + iu])  # MuJoCo's A and ctrl columns in z = [δq; δv; δu]
+    th = np.arange(3, 6)  # the free joint's quaternion tangent (our v order, MuJoCo layout)
+    assert next(j for j in model.joints if j["type"] in ("floating", "free"))["v_index"] == 0
+    G0 = mj_transition(mc, iq, iv, iu, q, v, u)
+    assert rel_err(G0, AB[:, cols]) < 1e-6
+
+    def moved(d, t):
+        a, w = np.zeros(mc.m.nq), np.zeros(mc.m.nv)
+        a[iq], w[iv] = q, t * d[:nv]
+        mujoco.mj_integratePos(mc.m, a, w, 1.0)
+        return mj_transition(mc, iq, iv, iu, a[iq], v + t * d[nv:2 * nv], u + t * d[2 * nv:])
+
+    rng = np.random.default_rng(4)
+    base_turn = np.zeros(3 * nv)
+    base_turn[th] = [0.6, -0.3, 0.8]
+    hinges_and_rates = np.concatenate([np.zeros(6), rng.uniform(-1, 1, nv - 6), rng.uniform(-1, 1, 2 * nv)])
+    for d in (rng.uniform(-1, 1, 3 * nv), base_turn, hinges_and_rates):
+        # the outer step is large against mjd_transitionFD's own (1e-4, centred): its
+        # rounding noise stays small; Richardson takes the outer error to O(h⁴)
+        h = 1e-2
+        D = [(moved(d, s) - moved(d, -s)) / (2 * s) for s in (h, h / 2)]
+        dG = (4 * D[1] - D[0]) / 3
+        expect = np.einsum("ijk,k->ij", H, d)[:, cols]
+        phi = (AB @ d)[th]
+        expect[th] -= 0.5 * np.cross(phi, AB[th][:, cols], axis=0)
+        for b in range(3):  # the input chart on the quaternion columns
+            e = np.zeros(3)
+            e[b] = 1.0
+            expect[:, th[b]] += 0.5 * AB[:, th] @ np.cross(d[th], e)
+        err = rel_err(dG, expect)
+        assert err < 1e-6, f"H·d vs differences of mjd_transitionFD: {err:.2e}"
+        # the corrections matter here: without them the comparison fails
+        assert rel_err(dG, np.einsum("ijk,k->ij", H, d)[:, cols]) > 1e-4 or not np.any(d[th])
+
+
 # ------------------------------------------------------------ within rbdkit
 
 
@@ -641,6 +716,7 @@ def test_bad_output_convention():
              lambda c: rbd.integrator_gradient(q, v, u, 0.01, output_convention=c),
              lambda c: rbd.plant_step(x, u, 0.01, output_convention=c),
              lambda c: rbd.plant_step_gradient(x, u, 0.01, output_convention=c),
+             lambda c: rbd.plant_step_hessian(x, u, 0.01, output_convention=c),
              lambda c: rbd.quadratic_state_cost(x, x, np.ones(model.nq + model.nv), output_convention=c),
              lambda c: rbd.quadratic_state_cost_tangent(x, x, np.ones(2 * model.nv), output_convention=c),
              lambda c: rbd.quadratic_input_cost(u, u, np.ones(model.nv), output_convention=c),
@@ -663,3 +739,5 @@ def test_bad_output_convention():
     qb[3:7] *= 2
     with pytest.raises(ValueError, match=r"^q: the quaternion of joint .*w x y z, MuJoCo layout"):
         rbd.integrator(qb, v, u, 0.01, output_convention="mujoco")
+    with pytest.raises(ValueError, match=r"^q: the quaternion of joint .*w x y z, MuJoCo layout"):
+        rbd.plant_step_hessian(np.concatenate([qb, v]), u, 0.01, output_convention="mujoco")

@@ -50,12 +50,15 @@ RBD_HD Tableau tableau(int type) {
   }
 }
 
-// ---- conventions: retraction ⊕ with its Jacobians, and the acceleration
+// ---- conventions: retraction ⊕ (its inverse ⊖) with its Jacobians, and the acceleration
 // a(q, v, u) = d/dt v with ∂a/∂δq, ∂a/∂v, ∂a/∂u (nv x nv each)
 
 // Pinocchio's: integrate (SE(3)/SO(3) exponential), body-frame velocities
 template <typename S> struct PinocchioStep {
   RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { integrate(m, q, d, out); }
+  RBD_HD static void difference(const ModelView<S>& m, const S* q0, const S* q1, S* out) {
+    rbd::difference(m, q0, q1, out);
+  }
   RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
     dintegrate(m, q, d, arg, J);
   }
@@ -78,6 +81,9 @@ template <typename S> struct PinocchioStep {
 // MuJoCo's: mj_integratePos, qvel = [ṗ world; ω body] on free joints
 template <typename S> struct MujocoStep {
   RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { mj_integrate(m, q, d, out); }
+  RBD_HD static void difference(const ModelView<S>& m, const S* q0, const S* q1, S* out) {
+    mj_difference(m, q0, q1, out);
+  }
   RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
     mj_dintegrate(m, q, d, arg, J);
   }
