@@ -228,6 +228,16 @@ void Handle::plant_step_gradient(long B, const double* x, const double* u, const
                              x_next.data(), AB);
 }
 
+void Handle::plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type,
+                                double* H) {
+  require("plant_step_hessian");
+  split_state(model_, B, x, scratch_);
+  std::vector<double> x_next(static_cast<size_t>(B * (model_.nq + model_.nv)));
+  std::vector<double> AB(static_cast<size_t>(B * 2 * model_.nv * 3 * model_.nv));
+  batch::plant_step_hessian(model_, B, scratch_.data(), scratch_.data() + B * model_.nq, u, dt, gravity, type,
+                            x_next.data(), AB.data(), H);
+}
+
 // ---- costs and barriers
 
 void Handle::quadratic_state_cost(long B, const double* x, const double* x_des, const double* Q, double* value,

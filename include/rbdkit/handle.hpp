@@ -91,6 +91,8 @@ class Handle {
                   double* x_next);
   void plant_step_gradient(long B, const double* x, const double* u, const double* fext, double dt, double gravity,
                            int type, double* AB);
+  // the step Hessian H (B x 2nv x 3nv x 3nv) of plant_step (integrator_hessian.hpp); no external forces
+  void plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type, double* H);
 
   // ---- costs (value (B), grad, H) and barriers (value (B), grad, Hdiag); layouts in costs_api.hpp
   void quadratic_state_cost(long B, const double* x, const double* x_des, const double* Q, double* value,
