@@ -86,7 +86,7 @@ def reach_task(model, target=None):
 ATLAS_START = {"l_arm_shx": -1.3, "r_arm_shx": 1.3, "l_arm_elx": 0.3, "r_arm_elx": -0.3,
                "l_leg_kny": 0.3, "r_leg_kny": 0.3, "l_leg_hpy": -0.15, "r_leg_hpy": -0.15,
                "l_leg_aky": -0.15, "r_leg_aky": -0.15}
-ATLAS_TARGET = np.array([0.45, 0.35, 0.35])
+ATLAS_TARGET = np.array([0.35, 0.45, -0.05])
 
 
 def atlas_task(model, target=None):
@@ -123,7 +123,7 @@ def max_limit_violation(model, X, U):
 
 
 def run(task="reach", robot=None, horizon=None, dt=None, integrator="rk4", target=None, threads=None,
-        dtype="float64", ddp=False, max_iterations=200, out="rbdkit_demo", png=True, stream=sys.stdout):
+        dtype="float64", ddp=False, max_iterations=200, out="rbdkit_demo", png=True, stream=None):
     """Solve a built-in task, print progress and a summary, write demo.png and demo.json
     into `out` (None: write nothing). Returns the record (a dict)."""
     if task not in TASKS:
@@ -133,7 +133,7 @@ def run(task="reach", robot=None, horizon=None, dt=None, integrator="rk4", targe
             raise ValueError("robot: the atlas_reach task runs on the bundled atlas; leave --robot out")
         model = load_robot("atlas")
         setup = atlas_task(model, target)
-        horizon, dt = horizon or 60, dt or 0.02
+        horizon, dt = horizon or 50, dt or 0.03
     else:
         model = load_robot(robot or "iiwa")
         setup = reach_task(model, target)
@@ -148,6 +148,7 @@ def run(task="reach", robot=None, horizon=None, dt=None, integrator="rk4", targe
         algos = ["integrator_gradient"] + (["plant_step_hessian"] if ddp else [])
         handle = Handle(model, algorithms=algos, dtype=dtype, threads=threads)
 
+    stream = sys.stdout if stream is None else stream
     p = lambda *a: print(*a, file=stream, flush=True)
     p(f"rbdkit demo — {task}: {model.name} (nq={model.nq}, nv={model.nv}), {horizon} knots × dt {dt} s, "
       f"{integrator}, {'DDP' if ddp else 'iLQR'}")
@@ -236,8 +237,8 @@ def figure(model, res, P, setup, dt, path):
 def add_arguments(parser):
     parser.add_argument("--task", default="reach", choices=TASKS, help="built-in task (default: reach)")
     parser.add_argument("--robot", help="reach: bundled robot name or URDF path (default: iiwa)")
-    parser.add_argument("--horizon", type=int, help="knot points (default: 100 reach, 60 atlas_reach)")
-    parser.add_argument("--dt", type=float, help="time step in s (default: 0.01 reach, 0.02 atlas_reach)")
+    parser.add_argument("--horizon", type=int, help="knot points (default: 100 reach, 50 atlas_reach)")
+    parser.add_argument("--dt", type=float, help="time step in s (default: 0.01 reach, 0.03 atlas_reach)")
     parser.add_argument("--integrator", default="rk4", help="euler, semi_implicit_euler, midpoint, rk4 (default), "
                                                             "trapezoidal, constant_acceleration")
     parser.add_argument("--target", help="end-effector target x,y,z in m (world frame)")

@@ -194,10 +194,11 @@ def test_warm_start(iiwa, default_solution):
     setup, ref = default_solution
     x0 = ref.X[0]
     kw = {k: v for k, v in setup.items()}
-    # the optimum warm-started (controls, states and gains) is already converged
-    res = rbdkit.solve_trajectory(iiwa, x0, 100, 0.01, "rk4", U_init=ref.U, X_init=ref.X, K_init=ref.K, **kw)
+    # the optimum warm-started (controls, states, gains and the final barrier parameter) is already converged
+    res = rbdkit.solve_trajectory(iiwa, x0, 100, 0.01, "rk4", U_init=ref.U, X_init=ref.X, K_init=ref.K,
+                                  mu_init=ref.mu, **kw)
     np.testing.assert_allclose(res.X[0], x0)
-    assert res.converged and res.iterations <= 10
+    assert res.converged and res.iterations <= 3
     assert res.log[0]["cost"] == pytest.approx(ref.cost, rel=1e-9)
     # MPC: shift by 5 knots from a perturbed state, closed-loop first rollout
     x1 = ref.X[5] + np.r_[np.zeros(7), 0.05 * np.ones(7)]
@@ -205,13 +206,14 @@ def test_warm_start(iiwa, default_solution):
     X = np.r_[ref.X[5:], np.repeat(ref.X[-1:], 5, axis=0)]
     K = np.r_[ref.K[5:], np.repeat(ref.K[-1:], 5, axis=0)]
     cold = rbdkit.solve_trajectory(iiwa, x1, 100, 0.01, "rk4", **kw)
-    warm = rbdkit.solve_trajectory(iiwa, x1, 100, 0.01, "rk4", U_init=U, X_init=X, K_init=K, **kw)
+    warm = rbdkit.solve_trajectory(iiwa, x1, 100, 0.01, "rk4", U_init=U, X_init=X, K_init=K, mu_init=1e-5, **kw)
     assert warm.converged and warm.iterations < cold.iterations
     assert warm.cost == pytest.approx(cold.cost, rel=1e-3)
 
 
 def test_atlas_whole_body_reach_with_com_cost(tmp_path):
-    rec = demo.run(task="atlas_reach", horizon=40, dt=0.025, out=None, stream=open(tmp_path / "log", "w"))
+    with open(tmp_path / "log", "w") as log:
+        rec = demo.run(task="atlas_reach", out=None, stream=log)
     s = rec["summary"]
     assert s["converged"], s["status"]
     assert s["final_ee_error_m"] < 1e-3
@@ -284,7 +286,7 @@ def test_bad_input(iiwa):
         (dict(U_init=np.zeros((9, 7))), ValueError, "U_init: expected shape (10, 7)"),
         (dict(U_init=np.zeros((10, 7)), X_init=np.zeros((10, 14))), ValueError, "X_init: expected shape (11, 14)"),
         (dict(K_init=np.zeros((10, 7, 14))), ValueError, "K_init: needs X_init"),
-        (dict(U_init=np.full((10, 7), 400.0)), ValueError, "joint limits"),  # beyond the 300 N·m effort limit
+        (dict(U_init=np.full((10, 7), 301.0) * (np.arange(7) == 0)), ValueError, "joint limits"),  # > 300 N·m
         (dict(x0=np.r_[3.0, demo.IIWA_START[1:], np.zeros(7)]), ValueError, "joint limits"),
         (dict(integrator_type="leapfrog"), ValueError, "integrator_type"),
         (dict(limits=("position", "acceleration")), ValueError, "limits: expected a subset"),
