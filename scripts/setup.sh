@@ -38,5 +38,5 @@ export PIP_BREAK_SYSTEM_PACKAGES=1 PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_ROOT_USER
 if [[ $with_test == 1 ]]; then
   "$PY" -m pip install -q -r "$(dirname "$0")/../requirements-dev.txt"
 else
-  "$PY" -m pip install -q "numpy>=1.22" "scikit-build-core>=0.10" "nanobind>=2.0"
+  "$PY" -m pip install -q "numpy>=1.22" "scikit-build-core>=0.10" "nanobind>=2.0" "matplotlib>=3.5"
 fi

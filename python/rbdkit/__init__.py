@@ -16,7 +16,8 @@ on batched arrays. Conventions: docs/conventions.md.
 from ._model import Model
 from ._rbd import RBD
 from ._handle import Handle
+from ._solver import solve_trajectory, TrajectoryResult
 from . import robots
 
-__all__ = ["Model", "RBD", "Handle", "robots"]
+__all__ = ["Model", "RBD", "Handle", "robots", "solve_trajectory", "TrajectoryResult"]
 __version__ = "0.1.0"

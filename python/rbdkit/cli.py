@@ -1,7 +1,11 @@
 """The rbdkit command.
 
-    rbdkit                      report on the bundled iiwa14 (the main job)
+    rbdkit                      the demo (the main job): iiwa14 reaches a target, optimised by iLQR
+    rbdkit demo [--task reach|atlas_reach] [--robot NAME|PATH] [--horizon N] [--dt S]
+                [--integrator rk4] [--target x,y,z] [--threads T] [--dtype float64|float32]
+                [--ddp] [--out DIR]    trajectory optimisation: progress, summary, PNG, JSON
     rbdkit report [--robot NAME|PATH] [--floating-base]
+                                dynamics report (model summary, RNEA/CRBA/ABA, times)
     rbdkit robots               list the bundled robots
     rbdkit bench [--robots iiwa,hyq] [--ops rnea,aba] [--batch 0,64] [--threads 1,2] [--quick]
                  [--out DIR] [--json FILE] [-- Google Benchmark flags]
@@ -175,7 +179,11 @@ def bench(args, extra):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="rbdkit", description="rigid-body dynamics for robots")
     sub = parser.add_subparsers(dest="cmd")
-    r = sub.add_parser("report", help="dynamics report on a robot (the default command)")
+    from . import demo
+    d = sub.add_parser("demo", help="trajectory optimisation demo (the default command): progress, summary, "
+                                    "PNG, JSON", description=demo.__doc__.split("\n\n")[0])
+    demo.add_arguments(d)
+    r = sub.add_parser("report", help="dynamics report on a robot")
     r.add_argument("--robot", default="iiwa", help="bundled robot name or URDF path (default: iiwa)")
     r.add_argument("--floating-base", action="store_true", help="add a free-flyer root joint")
     r.add_argument("--seed", type=int, default=0)
@@ -209,7 +217,9 @@ def main(argv=None):
         if args.cmd == "bench":
             return bench(args, extra)
         if args.cmd is None:
-            return report()
+            return demo.main_from_args(parser.parse_args(["demo"]))
+        if args.cmd == "demo":
+            return demo.main_from_args(args)
         return report(args.robot, args.floating_base, args.seed)
     except (ValueError, TypeError, FileNotFoundError) as e:
         print(f"rbdkit: error: {e}", file=sys.stderr)

@@ -36,6 +36,7 @@ void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
 void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
 void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
+void bind_solver(nb::module_& m);  // bind_solver.cpp
 
 
 namespace {
@@ -203,4 +204,5 @@ NB_MODULE(_core, m) {
   bind_second_order(m);
   bind_handle(m);
   bind_mujoco(m);
+  bind_solver(m);
 }
