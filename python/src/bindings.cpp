@@ -34,6 +34,7 @@ void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
 void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
 void bind_second_order(nb::module_& m);  // bind_second_order.cpp
+void bind_engine(nb::module_& m);  // bind_engine.cpp
 
 
 namespace {
@@ -199,4 +200,5 @@ NB_MODULE(_core, m) {
   bind_regressor(m);
   bind_centroidal(m);
   bind_second_order(m);
+  bind_engine(m);
 }
