@@ -5,7 +5,8 @@
 //     threads 1, 2, 3 and B in {1, 3, 7, 16, 65}; float64 equal to the
 //     single-sample functions (rnea, crba, minv, aba, rnea_derivatives,
 //     aba_derivatives, integrator_step, integrator_gradient) to 1e-12;
-//     float32 within 1e-4 of float64 (relative to max(1, max |value|));
+//     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
+//     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
 //   * bad arguments (threads, dtype, array type, B, integrator type, dt).
 #include <gtest/gtest.h>
 
@@ -231,7 +232,9 @@ TEST_P(EngineModels, Float32CloseToFloat64) {
     const std::vector<double> r64 = run_engine<double>(e64, op, B, s);
     const std::vector<float> r32f = run_engine<float>(e32, op, B, s);
     const std::vector<double> r32(r32f.begin(), r32f.end());
-    for (long b = 0; b < B; ++b) EXPECT_LE(max_rel_err(sample_of(r32, w, b), sample_of(r64, w, b)), 1e-4) << "sample " << b;
+    // M⁻¹ and what is built on it (∇FD, step gradients) carry cond(M)·ε_float32 (docs/engine.md)
+    const double tol = op == 2 || op == 5 || op >= 12 ? 2e-3 : 1e-4;
+    for (long b = 0; b < B; ++b) EXPECT_LE(max_rel_err(sample_of(r32, w, b), sample_of(r64, w, b)), tol) << "sample " << b;
   }
 }
 

@@ -174,7 +174,7 @@ def test_bad_input():
     with pytest.raises(ValueError, match="tau: batch size 5"):
         e.inverse_dynamics(q, v, v, G, np.zeros((5, nv)))
     with pytest.raises(ValueError, match="q: expected 19 values per sample"):
-        e.crba(q[:, :nv], np.zeros((4, nv, nv)))
+        e.crba(np.ascontiguousarray(q[:, :nv]), np.zeros((4, nv, nv)))
     with pytest.raises(ValueError, match="M: expected 324 values per sample"):
         e.crba(q, np.zeros((4, nv)))
     with pytest.raises(ValueError, match="empty"):
@@ -182,7 +182,7 @@ def test_bad_input():
     with pytest.raises(ValueError, match="C-contiguous"):
         e.forward_dynamics(q, np.zeros((4, 2 * nv))[:, ::2], tau, G, tau)
     with pytest.raises(ValueError, match="0-d"):
-        e.crba(np.float64(1.0), np.zeros((1, nv, nv)))
+        e.crba(np.array(1.0), np.zeros((1, nv, nv)))
     # integrator type and dt
     x, AB = np.zeros((4, nq + nv)), np.zeros((4, 2 * nv, 3 * nv))
     with pytest.raises(ValueError, match="integrator_type: unknown integrator 'rk3'"):
