@@ -1,10 +1,12 @@
 // The batched CPU engine (engine.hpp) and its SIMD pack (simd.hpp):
 //   * Pack<T, W>: lane-wise arithmetic, functions and branch helpers equal
-//     the scalar ones lane by lane (sin and cos within an ulp or two);
+//     the scalar ones lane by lane (sin and cos within an ulp of libm);
 //   * every operation, on every model case: results bit-identical for
 //     threads 1, 2, 3 and B in {1, 3, 7, 16, 65}; float64 equal to the
 //     single-sample functions (rnea, crba, minv, aba, rnea_derivatives,
-//     aba_derivatives, integrator_step, integrator_gradient) to 1e-12;
+//     aba_derivatives, integrator_step, integrator_gradient) to 1e-12 (M⁻¹
+//     and ∇FD: 1e-12·cond₁(M)/1e4 where cond₁(M) > 1e4, the amplification of
+//     the ulp-level differences of the vectorised sin/cos);
 //     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
 //     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
 //   * bad arguments (threads, dtype, array type, B, integrator type, dt).
@@ -224,6 +226,20 @@ std::vector<double> sample_of(const std::vector<double>& all, long w, long b) {
   return std::vector<double>(all.begin() + b * w, all.begin() + (b + 1) * w);
 }
 
+// 1-norm condition number of M (n x n) from M and M⁻¹
+double cond1(const std::vector<double>& M, const std::vector<double>& Minv, int n) {
+  auto norm1 = [n](const std::vector<double>& A) {
+    double best = 0;
+    for (int c = 0; c < n; ++c) {
+      double col = 0;
+      for (int r = 0; r < n; ++r) col += std::fabs(A[r * n + c]);
+      best = std::max(best, col);
+    }
+    return best;
+  };
+  return norm1(M) * norm1(Minv);
+}
+
 class EngineModels : public ::testing::TestWithParam<ModelCase> {};
 
 }  // namespace
@@ -246,10 +262,13 @@ TEST_P(EngineModels, DeterministicAndEqualToSingleSample) {
           ASSERT_EQ(std::memcmp(&part[k], &full[k], sizeof(double)), 0)
               << "threads " << e->threads() << " B " << B << " value " << k;
       }
-    // equal to the single-sample functions
+    // equal to the single-sample functions; the engine's sin and cos are within
+    // an ulp of libm's, and M⁻¹ amplifies such input differences by up to cond(M)
     for (long b = 0; b < Bmax; b += 8) {
       const std::vector<double> ref = reference(m, op, s, b);
-      EXPECT_LE(max_rel_err(sample_of(full, w, b), ref), 1e-12) << "sample " << b;
+      double tol = 1e-12;
+      if (op == 2 || op == 5) tol *= std::max(1.0, cond1(reference(m, 1, s, b), reference(m, 2, s, b), m.nv) / 1e4);
+      EXPECT_LE(max_rel_err(sample_of(full, w, b), ref), tol) << "sample " << b;
     }
   }
 }

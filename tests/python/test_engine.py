@@ -2,7 +2,9 @@
 float64 and float32):
   * results bit-identical for threads 1, 2, 3 and B in {1, 3, 7, 16, 65};
   * float64 equal to the RBD methods of the same names (the single-sample
-    code) to 1e-12 relative;
+    code) to 1e-12 relative (M⁻¹ and ∇FD: 1e-12·cond₁(M)/1e4 where cond₁(M)
+    exceeds 1e4: the engine's sin/cos are within an ulp of libm's, and M⁻¹
+    amplifies input differences by cond(M));
   * float32 within 1e-4 of float64 (relative to max(1, max |value|) per
     sample); M⁻¹ and what is built on it (∇FD, the step gradients) are
     limited by cond(M)·ε_float32 and get the documented looser bound below;
@@ -116,6 +118,11 @@ def rel_err(a, b):
     return (np.abs(a - b).max(axis=1) / scale).max()
 
 
+def cond1(M, Minv):
+    """the largest 1-norm condition number of a batch of mass matrices"""
+    return (np.abs(M).sum(axis=1).max(axis=1) * np.abs(Minv).sum(axis=1).max(axis=1)).max()
+
+
 @pytest.mark.parametrize("op", OPS)
 def test_bit_identical_and_equal_to_single_sample(case, op):
     m = case.model
@@ -126,7 +133,12 @@ def test_bit_identical_and_equal_to_single_sample(case, op):
             part = run(e, m, op, case.q[:B], case.qd[:B], case.a[:B])
             for x, y in zip(part, full):
                 assert np.array_equal(x.view(np.uint64), y[:B].view(np.uint64)), (e.threads, B)
-    assert rel_err(full, reference(case, op)) <= 1e-12
+    # the engine's sin and cos are within an ulp of libm's; M⁻¹ amplifies such
+    # differences in its input by up to cond(M) (Atlas floating: ~5e5)
+    tol = 1e-12
+    if op in ("minv", "forward_dynamics_gradient"):
+        tol *= max(1.0, cond1(case.rbd.crba(case.q), case.rbd.minv(case.q)) / 1e4)
+    assert rel_err(full, reference(case, op)) <= tol
 
 
 @pytest.mark.parametrize("op", OPS)
