@@ -33,6 +33,16 @@ RBD_HD float slog(float x) { return ::logf(x); }
 RBD_HD double value_of(double x) { return x; }
 RBD_HD float value_of(float x) { return x; }
 
+// lane-correct branching: a condition on a scalar is a bool here; on a SIMD
+// pack (simd.hpp) it is a lane mask, with the same four helpers. A branch
+// written as `if (any_lane(c)) ...; if (!all_lanes(c)) ...; select(c, a, b)`
+// takes one side for a scalar and both, blended per lane, for a pack.
+template <typename S, typename B> RBD_HD bool lane_lt(const S& a, B b) { return value_of(a) < b; }
+template <typename S, typename B> RBD_HD bool lane_gt(const S& a, B b) { return value_of(a) > b; }
+RBD_HD bool any_lane(bool c) { return c; }
+RBD_HD bool all_lanes(bool c) { return c; }
+template <typename S> RBD_HD S select(bool c, const S& a, const S& b) { return c ? a : b; }
+
 // small-angle threshold below which series expansions replace the closed forms
 template <typename S> struct Eps;
 template <> struct Eps<double> { static constexpr double small = 1e-4; };

@@ -17,7 +17,7 @@ namespace rbd {
 // unit quaternion in the hemisphere of `ref`
 template <typename S> RBD_HD Quat<S> normalize_near(Quat<S> a, const Quat<S>& ref) {
   const S d = a.x * ref.x + a.y * ref.y + a.z * ref.z + a.w * ref.w;
-  const S s = (value_of(d) < 0 ? S(-1) : S(1)) / ssqrt(a.x * a.x + a.y * a.y + a.z * a.z + a.w * a.w);
+  const S s = select(lane_lt(d, 0), S(-1), S(1)) / ssqrt(a.x * a.x + a.y * a.y + a.z * a.z + a.w * a.w);
   return {s * a.x, s * a.y, s * a.z, s * a.w};
 }
 

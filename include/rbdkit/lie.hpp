@@ -40,52 +40,67 @@ template <typename S, int N> RBD_HD S series(const S& t2, const double (&c)[N]) 
 
 // (1 - cos θ)/θ²
 template <typename S> RBD_HD S coef_a(const S& t2) {
-  if (value_of(t2) < 1) {
-    const double c[] = {0.5, -0.041666666666666664, 0.001388888888888889, -2.48015873015873e-05, 2.755731922398589e-07, -2.08767569878681e-09, 1.1470745597729725e-11, -4.779477332387385e-14, 1.5619206968586225e-16, -4.110317623312165e-19, 8.896791392450574e-22};
-    return series(t2, c);
+  const auto small = lane_lt(t2, 1);
+  const double c[] = {0.5, -0.041666666666666664, 0.001388888888888889, -2.48015873015873e-05, 2.755731922398589e-07, -2.08767569878681e-09, 1.1470745597729725e-11, -4.779477332387385e-14, 1.5619206968586225e-16, -4.110317623312165e-19, 8.896791392450574e-22};
+  S r = S(0);
+  if (any_lane(small)) r = series(t2, c);
+  if (!all_lanes(small)) {
+    const S t = ssqrt(t2);
+    r = select(small, r, (S(1) - scos(t)) / t2);
   }
-  const S t = ssqrt(t2);
-  return (S(1) - scos(t)) / t2;
+  return r;
 }
 
 // (θ - sin θ)/θ³
 template <typename S> RBD_HD S coef_b(const S& t2) {
-  if (value_of(t2) < 1) {
-    const double c[] = {0.16666666666666666, -0.008333333333333333, 0.0001984126984126984, -2.7557319223985893e-06, 2.505210838544172e-08, -1.6059043836821613e-10, 7.647163731819816e-13, -2.8114572543455206e-15, 8.22063524662433e-18, -1.9572941063391263e-20, 3.868170170630684e-23};
-    return series(t2, c);
+  const auto small = lane_lt(t2, 1);
+  const double c[] = {0.16666666666666666, -0.008333333333333333, 0.0001984126984126984, -2.7557319223985893e-06, 2.505210838544172e-08, -1.6059043836821613e-10, 7.647163731819816e-13, -2.8114572543455206e-15, 8.22063524662433e-18, -1.9572941063391263e-20, 3.868170170630684e-23};
+  S r = S(0);
+  if (any_lane(small)) r = series(t2, c);
+  if (!all_lanes(small)) {
+    const S t = ssqrt(t2);
+    r = select(small, r, (t - ssin(t)) / (t2 * t));
   }
-  const S t = ssqrt(t2);
-  return (t - ssin(t)) / (t2 * t);
+  return r;
 }
 
 // (1 - (θ/2) cot(θ/2)) / θ²
 template <typename S> RBD_HD S coef_c(const S& t2) {
-  if (value_of(t2) < 1) {
-    const double c[] = {0.08333333333333333, 0.001388888888888889, 3.306878306878307e-05, 8.267195767195768e-07, 2.08767569878681e-08, 5.284190138687493e-10, 1.3382536530684679e-11, 3.3896802963225827e-13, 8.586062056277845e-15, 2.174868698558062e-16, 5.5090028283602295e-18, 1.3954464685812522e-19};
-    return series(t2, c);
+  const auto small = lane_lt(t2, 1);
+  const double c[] = {0.08333333333333333, 0.001388888888888889, 3.306878306878307e-05, 8.267195767195768e-07, 2.08767569878681e-08, 5.284190138687493e-10, 1.3382536530684679e-11, 3.3896802963225827e-13, 8.586062056277845e-15, 2.174868698558062e-16, 5.5090028283602295e-18, 1.3954464685812522e-19};
+  S r = S(0);
+  if (any_lane(small)) r = series(t2, c);
+  if (!all_lanes(small)) {
+    const S t = ssqrt(t2);
+    r = select(small, r, (S(1) - S(0.5) * t * ssin(t) / (S(1) - scos(t))) / t2);
   }
-  const S t = ssqrt(t2);
-  return (S(1) - S(0.5) * t * ssin(t) / (S(1) - scos(t))) / t2;
+  return r;
 }
 
 // (θ² + 2 cos θ - 2) / (2 θ⁴)
 template <typename S> RBD_HD S coef_d(const S& t2) {
-  if (value_of(t2) < 1) {
-    const double c[] = {0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05, -2.755731922398589e-07, 2.08767569878681e-09, -1.1470745597729725e-11, 4.779477332387385e-14, -1.5619206968586225e-16, 4.110317623312165e-19, -8.896791392450574e-22, 1.6117375710961184e-24};
-    return series(t2, c);
+  const auto small = lane_lt(t2, 1);
+  const double c[] = {0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05, -2.755731922398589e-07, 2.08767569878681e-09, -1.1470745597729725e-11, 4.779477332387385e-14, -1.5619206968586225e-16, 4.110317623312165e-19, -8.896791392450574e-22, 1.6117375710961184e-24};
+  S r = S(0);
+  if (any_lane(small)) r = series(t2, c);
+  if (!all_lanes(small)) {
+    const S t = ssqrt(t2);
+    r = select(small, r, (t2 + S(2) * scos(t) - S(2)) / (S(2) * t2 * t2));
   }
-  const S t = ssqrt(t2);
-  return (t2 + S(2) * scos(t) - S(2)) / (S(2) * t2 * t2);
+  return r;
 }
 
 // (2θ - 3 sin θ + θ cos θ) / (2 θ⁵)
 template <typename S> RBD_HD S coef_e(const S& t2) {
-  if (value_of(t2) < 1) {
-    const double c[] = {0.008333333333333333, -0.0003968253968253968, 8.267195767195768e-06, -1.0020843354176688e-07, 8.029521918410807e-10, -4.58829823909189e-12, 1.9680200780418645e-14, -6.576508197299464e-17, 1.7615646957052136e-19, -3.868170170630684e-22, 7.091645312822921e-25};
-    return series(t2, c);
+  const auto small = lane_lt(t2, 1);
+  const double c[] = {0.008333333333333333, -0.0003968253968253968, 8.267195767195768e-06, -1.0020843354176688e-07, 8.029521918410807e-10, -4.58829823909189e-12, 1.9680200780418645e-14, -6.576508197299464e-17, 1.7615646957052136e-19, -3.868170170630684e-22, 7.091645312822921e-25};
+  S r = S(0);
+  if (any_lane(small)) r = series(t2, c);
+  if (!all_lanes(small)) {
+    const S t = ssqrt(t2);
+    r = select(small, r, (S(2) * t - S(3) * ssin(t) + t * scos(t)) / (S(2) * t2 * t2 * t));
   }
-  const S t = ssqrt(t2);
-  return (S(2) * t - S(3) * ssin(t) + t * scos(t)) / (S(2) * t2 * t2 * t);
+  return r;
 }
 
 // ---- SO(3)
@@ -93,30 +108,35 @@ template <typename S> RBD_HD S coef_e(const S& t2) {
 // exp(w) as a unit quaternion
 template <typename S> RBD_HD Quat<S> quat_exp(const Vec3<S>& w) {
   const S t2 = dot(w, w);
-  S c, sinc;  // cos(θ/2), sin(θ/2)/θ
-  if (value_of(t2) < Eps<S>::small * Eps<S>::small) {
+  S c = S(0), sinc = S(0);  // cos(θ/2), sin(θ/2)/θ
+  const auto small = lane_lt(t2, Eps<S>::small * Eps<S>::small);
+  if (any_lane(small)) {
     c = S(1) - t2 / S(8) + t2 * t2 / S(384);
     sinc = S(0.5) - t2 / S(48) + t2 * t2 / S(3840);
-  } else {
+  }
+  if (!all_lanes(small)) {
     const S t = ssqrt(t2);
-    c = scos(S(0.5) * t);
-    sinc = ssin(S(0.5) * t) / t;
+    c = select(small, c, scos(S(0.5) * t));
+    sinc = select(small, sinc, ssin(S(0.5) * t) / t);
   }
   return {sinc * w.x, sinc * w.y, sinc * w.z, c};
 }
 
 // log of a unit quaternion, the rotation vector with |w| <= π
 template <typename S> RBD_HD Vec3<S> quat_log(Quat<S> a) {
-  if (value_of(a.w) < 0) a = {-a.x, -a.y, -a.z, -a.w};
+  const auto neg = lane_lt(a.w, 0);
+  if (any_lane(neg)) a = {select(neg, -a.x, a.x), select(neg, -a.y, a.y), select(neg, -a.z, a.z), select(neg, -a.w, a.w)};
   const S n2 = a.x * a.x + a.y * a.y + a.z * a.z;
-  S k;  // θ / sin(θ/2), θ = 2 atan2(|v|, w)
-  if (value_of(n2) < Eps<S>::small * Eps<S>::small) {
+  S k = S(0);  // θ / sin(θ/2), θ = 2 atan2(|v|, w)
+  const auto small = lane_lt(n2, Eps<S>::small * Eps<S>::small);
+  if (any_lane(small)) {
     // 2 atan(n/w)/n ≈ (2/w)(1 - n²/(3w²) + n⁴/(5w⁴))
     const S r = n2 / (a.w * a.w);
     k = S(2) / a.w * (S(1) - r / S(3) + r * r / S(5));
-  } else {
+  }
+  if (!all_lanes(small)) {
     const S n = ssqrt(n2);
-    k = S(2) * satan2(n, a.w) / n;
+    k = select(small, k, S(2) * satan2(n, a.w) / n);
   }
   return {k * a.x, k * a.y, k * a.z};
 }

@@ -37,6 +37,7 @@ void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
 void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
+void bind_engine(nb::module_& m);  // bind_engine.cpp
 
 
 namespace {
@@ -205,4 +206,5 @@ NB_MODULE(_core, m) {
   bind_handle(m);
   bind_mujoco(m);
   bind_solver(m);
+  bind_engine(m);
 }

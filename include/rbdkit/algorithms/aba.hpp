@@ -34,7 +34,7 @@ template <typename S> RBD_HD bool joint_inertia(int n, const Motion<S>* Sc, cons
   for (int k = 0; k < n; ++k) U[k] = IA * Sc[k];
   if (n == 1) {
     Dinv[0] = S(1) / dot(Sc[0], U[0]);
-    return value_of(Dinv[0]) > 0;
+    return all_lanes(lane_gt(Dinv[0], 0));
   }
   S D[36];
   for (int k = 0; k < n; ++k)

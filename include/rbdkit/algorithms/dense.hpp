@@ -14,7 +14,7 @@ template <typename S> RBD_HD bool cholesky(S* A, int n) {
   for (int j = 0; j < n; ++j) {
     S d = A[j * n + j];
     for (int k = 0; k < j; ++k) d -= A[j * n + k] * A[j * n + k];
-    if (!(value_of(d) > 0)) return false;
+    if (!all_lanes(lane_gt(d, 0))) return false;
     d = ssqrt(d);
     A[j * n + j] = d;
     for (int i = j + 1; i < n; ++i) {

@@ -1,0 +1,325 @@
+// The batched CPU engine (engine.hpp) and its SIMD pack (simd.hpp):
+//   * Pack<T, W>: lane-wise arithmetic, functions and branch helpers equal
+//     the scalar ones lane by lane (sin and cos within an ulp of libm);
+//   * every operation, on every model case: results bit-identical for
+//     threads 1, 2, 3 and B in {1, 3, 7, 16, 65}; float64 equal to the
+//     single-sample functions (rnea, crba, minv, aba, rnea_derivatives,
+//     aba_derivatives, integrator_step, integrator_gradient) to 1e-12 (M⁻¹
+//     and ∇FD: 1e-12·cond₁(M)/1e4 where cond₁(M) > 1e4, the amplification of
+//     the ulp-level differences of the vectorised sin/cos);
+//     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
+//     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
+//   * bad arguments (threads, dtype, array type, B, integrator type, dt).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/algorithms/integrators.hpp"
+#include "rbdkit/dynamics.hpp"
+#include "rbdkit/engine.hpp"
+#include "rbdkit/simd.hpp"
+#include "test_models.hpp"
+
+using rbd::Engine;
+using rbd::Model;
+using rbd_test::ModelCase;
+using rbd_test::max_rel_err;
+
+// ------------------------------------------------------------------ Pack
+TEST(Pack, LaneWiseEqualsScalar) {
+  using P = rbd::Pack<double, 4>;
+  P a, b;
+  const double av[4] = {0.3, -1.7, 2.5, 1e-9}, bv[4] = {1.1, 0.4, -3.0, 0.0};
+  for (int l = 0; l < 4; ++l) a.set(l, av[l]), b.set(l, bv[l]);
+  const P s = a + b, d = a - b, m = a * b, q = a / P(2.0), n = -a;
+  const P sn = rbd::ssin(a), cs = rbd::scos(a), sq = rbd::ssqrt(rbd::sabs(a)), at = rbd::satan2(a, b);
+  for (int l = 0; l < 4; ++l) {
+    EXPECT_EQ(s[l], av[l] + bv[l]);
+    EXPECT_EQ(d[l], av[l] - bv[l]);
+    EXPECT_EQ(m[l], av[l] * bv[l]);
+    EXPECT_EQ(q[l], av[l] / 2.0);
+    EXPECT_EQ(n[l], -av[l]);
+    EXPECT_NEAR(sn[l], std::sin(av[l]), 4e-16);
+    EXPECT_NEAR(cs[l], std::cos(av[l]), 4e-16);
+    EXPECT_EQ(sq[l], std::sqrt(std::fabs(av[l])));
+    EXPECT_EQ(at[l], std::atan2(av[l], bv[l]));
+  }
+  const auto lt = rbd::lane_lt(a, 1.0);
+  EXPECT_TRUE(rbd::any_lane(lt));
+  EXPECT_FALSE(rbd::all_lanes(lt));
+  EXPECT_TRUE(rbd::all_lanes(rbd::lane_lt(a, 10.0)));
+  EXPECT_FALSE(rbd::any_lane(rbd::lane_gt(a, 10.0)));
+  const P sel = rbd::select(lt, a, b);
+  for (int l = 0; l < 4; ++l) EXPECT_EQ(sel[l], av[l] < 1.0 ? av[l] : bv[l]);
+  // NaN lanes fail a positivity test
+  P c(1.0);
+  c.set(2, std::nan(""));
+  EXPECT_FALSE(rbd::all_lanes(rbd::lane_gt(c, 0)));
+  // the series switch of lie.hpp, lane by lane: small and large angles in one pack
+  P t2;
+  const double tv[4] = {0.0, 0.25, 4.0, 0.999};
+  for (int l = 0; l < 4; ++l) t2.set(l, tv[l]);
+  const P ca = rbd::coef_a(t2), cc = rbd::coef_c(t2);
+  for (int l = 0; l < 4; ++l) {
+    EXPECT_EQ(ca[l], rbd::coef_a(tv[l]));
+    EXPECT_EQ(cc[l], rbd::coef_c(tv[l]));
+  }
+  rbd::Pack<float, 8> f(0.5);
+  EXPECT_EQ((f * f)[7], 0.25f);
+}
+
+// the vectorised sin and cos against libm over many angles (every quadrant,
+// negative, near multiples of π/2, large |x| through the libm fallback)
+TEST(Pack, SinCosWithinUlps) {
+  using P = rbd::Pack<double, 8>;
+  using F = rbd::Pack<float, 8>;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> U(-40, 40);
+  double worst = 0, worst_f = 0;
+  for (int it = 0; it < 20000; ++it) {
+    P x;
+    F xf;
+    for (int l = 0; l < 8; ++l) {
+      double v = U(rng);
+      if (l == 1) v = std::round(v) * 1.5707963267948966;
+      if (l == 2) v = v * 1e4;
+      if (l == 3 && it % 7 == 0) v = 3e5 * v;
+      x.set(l, v), xf.set(l, float(v));
+    }
+    P s, c;
+    F sf, cf;
+    rbd::ssincos(x, s, c);
+    rbd::ssincos(xf, sf, cf);
+    for (int l = 0; l < 8; ++l) {
+      worst = std::max({worst, std::fabs(s[l] - std::sin(x[l])), std::fabs(c[l] - std::cos(x[l]))});
+      worst_f = std::max({worst_f, std::fabs(double(sf[l]) - std::sin(double(xf[l]))),
+                          std::fabs(double(cf[l]) - std::cos(double(xf[l])))});
+    }
+  }
+  EXPECT_LE(worst, 1e-15);
+  EXPECT_LE(worst_f, 6e-8);
+}
+
+// ------------------------------------------------------------------ engine
+namespace {
+
+constexpr int kOps = 18;  // 0 ID, 1 CRBA, 2 M⁻¹, 3 FD, 4 ∇ID, 5 ∇FD (+ M⁻¹), 6..11 integrator, 12..17 its gradient
+const double kDt = 0.01, kG = -9.81;
+
+struct Samples {
+  std::vector<double> q, qd, a;  // q (B x nq), qd (B x nv), a: qdd / tau / u (B x nv)
+};
+
+Samples make_samples(const Model& m, long B, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(-1, 1);
+  Samples s;
+  s.q.resize(B * m.nq), s.qd.resize(B * m.nv), s.a.resize(B * m.nv);
+  const std::vector<double> q0 = m.neutral();
+  std::vector<double> dv(m.nv);
+  for (long b = 0; b < B; ++b) {
+    for (double& x : dv) x = U(rng);
+    rbd::integrate(m.view(), q0.data(), dv.data(), s.q.data() + b * m.nq);
+    for (int k = 0; k < m.nv; ++k) s.qd[b * m.nv + k] = U(rng), s.a[b * m.nv + k] = 5 * U(rng);
+  }
+  return s;
+}
+
+// values per sample of an operation's outputs, concatenated
+long out_width(const Model& m, int op) {
+  const long nv = m.nv, nn = nv * nv;
+  switch (op) {
+    case 0: case 3: return nv;
+    case 1: case 2: return nn;
+    case 4: return 2 * nn;
+    case 5: return 3 * nn;
+    default: return op < 12 ? m.nq + nv : m.nq + nv + 6 * nn;
+  }
+}
+
+// the engine on the first B samples; per sample, the outputs concatenated
+template <typename T> std::vector<T> run_engine(Engine& e, int op, long B, const Samples& s64) {
+  const Model& m = e.model();
+  const long nv = m.nv, nn = nv * nv, nq = m.nq;
+  std::vector<T> q(s64.q.begin(), s64.q.begin() + B * nq), qd(s64.qd.begin(), s64.qd.begin() + B * nv),
+      a(s64.a.begin(), s64.a.begin() + B * nv);
+  const long w = out_width(m, op);
+  std::vector<T> o1(B * w), o2(B * w), o3(B * w), out(B * w);
+  auto pack = [&](std::initializer_list<std::pair<const std::vector<T>*, long>> parts) {
+    for (long b = 0; b < B; ++b) {
+      long off = 0;
+      for (auto& p : parts) {
+        for (long k = 0; k < p.second; ++k) out[b * w + off + k] = (*p.first)[b * p.second + k];
+        off += p.second;
+      }
+    }
+  };
+  const T g = T(kG), dt = T(kDt);
+  switch (op) {
+    case 0: e.inverse_dynamics<T>(B, q.data(), qd.data(), a.data(), g, o1.data()); pack({{&o1, nv}}); break;
+    case 1: e.crba<T>(B, q.data(), o1.data()); pack({{&o1, nn}}); break;
+    case 2: e.minv<T>(B, q.data(), o1.data()); pack({{&o1, nn}}); break;
+    case 3: e.forward_dynamics<T>(B, q.data(), qd.data(), a.data(), g, o1.data()); pack({{&o1, nv}}); break;
+    case 4:
+      e.inverse_dynamics_gradient<T>(B, q.data(), qd.data(), a.data(), g, o1.data(), o2.data());
+      pack({{&o1, nn}, {&o2, nn}});
+      break;
+    case 5:
+      e.forward_dynamics_gradient<T>(B, q.data(), qd.data(), a.data(), g, o1.data(), o2.data(), o3.data());
+      pack({{&o1, nn}, {&o2, nn}, {&o3, nn}});
+      break;
+    default:
+      if (op < 12) {
+        e.integrator<T>(B, q.data(), qd.data(), a.data(), dt, g, op - 6, o1.data());
+        pack({{&o1, nq + nv}});
+      } else {
+        e.integrator_gradient<T>(B, q.data(), qd.data(), a.data(), dt, g, op - 12, o1.data(), o2.data());
+        pack({{&o1, nq + nv}, {&o2, 6 * nn}});
+      }
+  }
+  return out;
+}
+
+// the single-sample functions on sample b
+std::vector<double> reference(const Model& m, int op, const Samples& s, long b) {
+  rbd::WorkspaceBuffer buf(m);
+  rbd::Workspace<double>& w = buf.get();
+  const rbd::ModelView<double> mv = m.view();
+  const long nv = m.nv, nn = nv * nv, nq = m.nq;
+  const double* q = s.q.data() + b * nq;
+  const double* qd = s.qd.data() + b * nv;
+  const double* a = s.a.data() + b * nv;
+  std::vector<double> out(out_width(m, op)), tmp(nv);
+  std::vector<double> scratch(rbd::integrator_gradient_scratch_values(m.nq, m.nv));
+  bool ok = true;
+  switch (op) {
+    case 0: rbd::rnea(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, out.data()); break;
+    case 1: rbd::crba(mv, w, q, out.data()); break;
+    case 2: ok = rbd::minv(mv, w, q, true, out.data()); break;
+    case 3: ok = rbd::aba(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, out.data()); break;
+    case 4: rbd::rnea_derivatives(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, out.data(), out.data() + nn); break;
+    case 5:
+      ok = rbd::aba_derivatives(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, tmp.data(), out.data(),
+                                out.data() + nn);
+      ok = ok && rbd::minv(mv, w, q, true, out.data() + 2 * nn);
+      break;
+    default:
+      if (op < 12)
+        ok = rbd::integrator_step(mv, w, op - 6, q, qd, a, static_cast<const double*>(nullptr), kDt, kG, out.data(),
+                                  out.data() + nq, scratch.data());
+      else
+        ok = rbd::integrator_gradient(mv, w, op - 12, q, qd, a, static_cast<const double*>(nullptr), kDt, kG,
+                                      out.data(), out.data() + nq, out.data() + nq + nv, scratch.data());
+  }
+  EXPECT_TRUE(ok);
+  return out;
+}
+
+std::vector<double> sample_of(const std::vector<double>& all, long w, long b) {
+  return std::vector<double>(all.begin() + b * w, all.begin() + (b + 1) * w);
+}
+
+// 1-norm condition number of M (n x n) from M and M⁻¹
+double cond1(const std::vector<double>& M, const std::vector<double>& Minv, int n) {
+  auto norm1 = [n](const std::vector<double>& A) {
+    double best = 0;
+    for (int c = 0; c < n; ++c) {
+      double col = 0;
+      for (int r = 0; r < n; ++r) col += std::fabs(A[r * n + c]);
+      best = std::max(best, col);
+    }
+    return best;
+  };
+  return norm1(M) * norm1(Minv);
+}
+
+class EngineModels : public ::testing::TestWithParam<ModelCase> {};
+
+}  // namespace
+
+TEST_P(EngineModels, DeterministicAndEqualToSingleSample) {
+  const ModelCase& c = GetParam();
+  const Model m = Model::from_urdf_file(c.path, c.floating);
+  const long Bmax = 65;
+  const Samples s = make_samples(m, Bmax, 7);
+  Engine e1(m, 1, "float64"), e2(m, 2, "float64"), e3(m, 3, "float64");
+  for (int op = 0; op < kOps; ++op) {
+    SCOPED_TRACE("op " + std::to_string(op));
+    const long w = out_width(m, op);
+    const std::vector<double> full = run_engine<double>(e1, op, Bmax, s);
+    // bit-identical whatever the thread count and batch size
+    for (Engine* e : {&e1, &e2, &e3})
+      for (long B : {1L, 3L, 7L, 16L, 65L}) {
+        const std::vector<double> part = run_engine<double>(*e, op, B, s);
+        for (long k = 0; k < B * w; ++k)
+          ASSERT_EQ(std::memcmp(&part[k], &full[k], sizeof(double)), 0)
+              << "threads " << e->threads() << " B " << B << " value " << k;
+      }
+    // equal to the single-sample functions; the engine's sin and cos are within
+    // an ulp of libm's, and M⁻¹ amplifies such input differences by up to cond(M)
+    for (long b = 0; b < Bmax; b += 8) {
+      const std::vector<double> ref = reference(m, op, s, b);
+      double tol = 1e-12;
+      if (op == 2 || op == 5) tol *= std::max(1.0, cond1(reference(m, 1, s, b), reference(m, 2, s, b), m.nv) / 1e4);
+      EXPECT_LE(max_rel_err(sample_of(full, w, b), ref), tol) << "sample " << b;
+    }
+  }
+}
+
+TEST_P(EngineModels, Float32CloseToFloat64) {
+  const ModelCase& c = GetParam();
+  const Model m = Model::from_urdf_file(c.path, c.floating);
+  const long B = 19;
+  const Samples s = make_samples(m, B, 11);
+  Engine e64(m, 2, "float64"), e32(m, 2, "float32");
+  for (int op = 0; op < kOps; ++op) {
+    SCOPED_TRACE("op " + std::to_string(op));
+    const long w = out_width(m, op);
+    const std::vector<double> r64 = run_engine<double>(e64, op, B, s);
+    const std::vector<float> r32f = run_engine<float>(e32, op, B, s);
+    const std::vector<double> r32(r32f.begin(), r32f.end());
+    // M⁻¹ and what is built on it (∇FD, step gradients) carry cond(M)·ε_float32 (docs/engine.md)
+    const double tol = op == 2 || op == 5 || op >= 12 ? 2e-3 : 1e-4;
+    for (long b = 0; b < B; ++b) EXPECT_LE(max_rel_err(sample_of(r32, w, b), sample_of(r64, w, b)), tol) << "sample " << b;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, EngineModels, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
+
+TEST(Engine, BadArguments) {
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf");
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "no exception";
+  };
+  EXPECT_NE(message([&] { Engine e(m, 0); }).find("threads"), std::string::npos);
+  EXPECT_NE(message([&] { Engine e(m, -2); }).find("threads"), std::string::npos);
+  EXPECT_NE(message([&] { Engine e(m, 1, "float16"); }).find("dtype"), std::string::npos);
+  Engine e(m, 2, "float32");
+  EXPECT_EQ(e.threads(), 2);
+  EXPECT_EQ(e.dtype(), "float32");
+  std::vector<double> q(m.nq), M(m.nv * m.nv);
+  std::vector<float> qf(m.nq), Mf(m.nv * m.nv), x(m.nq + m.nv), v(m.nv);
+  EXPECT_NE(message([&] { e.crba<double>(1, q.data(), M.data()); }).find("float32"), std::string::npos);
+  EXPECT_NE(message([&] { e.crba<float>(0, qf.data(), Mf.data()); }).find("B"), std::string::npos);
+  EXPECT_NE(message([&] { e.integrator<float>(1, qf.data(), v.data(), v.data(), 0.01f, -9.81f, 9, x.data()); })
+                .find("integrator_type"),
+            std::string::npos);
+  EXPECT_NE(message([&] { e.integrator<float>(1, qf.data(), v.data(), v.data(), 0.0f, -9.81f, 0, x.data()); })
+                .find("dt"),
+            std::string::npos);
+  EXPECT_GE(Engine::default_threads(), 1);
+  Engine d(m);
+  EXPECT_EQ(d.threads(), Engine::default_threads());
+}
