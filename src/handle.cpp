@@ -111,8 +111,12 @@ std::string algorithm_of(const std::string& operation) {
   return "";
 }
 
-Handle::Handle(Model model, const std::vector<std::string>& algorithms)
+Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads)
     : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)), ws_(model_) {
+  if (threads < 0)
+    throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
+                                std::to_string(threads));
+  if (threads > 0) engine_.reset(new Engine(model_, threads, "float64"));
   for (const std::string& n : algorithms_)
     for (const std::string& op : find_algorithm(n)->operations) operations_.push_back(op);
 }
@@ -130,33 +134,57 @@ void Handle::require(const char* operation) const {
                               "' to its algorithms");
 }
 
+void Handle::check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,
+                          const char* w_name) const {
+  check_configurations(model_, B, q, "q");
+  if (qd) check_finite(qd, B * model_.nv, qd_name);
+  if (w) check_finite(w, B * model_.nv, w_name);
+}
+
 // ---- dynamics
 
 void Handle::inverse_dynamics(long B, const double* q, const double* qd, const double* qdd, const double* fext,
                               double gravity, double* tau) {
   require("inverse_dynamics");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", qdd, "qdd");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->inverse_dynamics<double>(B, q, qd, qdd, gravity, tau);
+  }
   batch::inverse_dynamics(model_, B, q, qd, qdd, fext, gravity, tau, nullptr, nullptr, nullptr, &ws_.get());
 }
 
 void Handle::crba(long B, const double* q, double* M) {
   require("crba");
+  if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->crba<double>(B, q, M);
   batch::crba(model_, B, q, M, &ws_.get());
 }
 
 void Handle::minv(long B, const double* q, double* Minv) {
   require("minv");
+  if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->minv<double>(B, q, Minv);
   batch::minv(model_, B, q, true, Minv, &ws_.get());
 }
 
 void Handle::aba(long B, const double* q, const double* qd, const double* tau, const double* fext, double gravity,
                  double* qdd) {
   require("aba");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", tau, "tau");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
+  }
   batch::aba(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get());
 }
 
 void Handle::forward_dynamics(long B, const double* q, const double* qd, const double* tau, const double* fext,
                               double gravity, double* qdd) {
   require("forward_dynamics");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", tau, "tau");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
+  }
   batch::forward_dynamics(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get());
 }
 
@@ -165,6 +193,11 @@ void Handle::forward_dynamics(long B, const double* q, const double* qd, const d
 void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd, const double* qdd,
                                        const double* fext, double gravity, double* dtau_dq, double* dtau_dqd) {
   require("inverse_dynamics_gradient");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", qdd, "qdd");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->inverse_dynamics_gradient<double>(B, q, qd, qdd, gravity, dtau_dq, dtau_dqd);
+  }
   // batch:: writes [∂tau/∂q | ∂tau/∂qd] (B x nv x 2nv): split it per row
   const long nv = model_.nv;
   scratch_.resize(static_cast<size_t>(B * nv * 2 * nv));
@@ -178,6 +211,11 @@ void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd
 void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd, const double* tau,
                                        const double* fext, double gravity, double* dqdd_dq, double* dqdd_dqd) {
   require("forward_dynamics_gradient");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", tau, "tau");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->forward_dynamics_gradient<double>(B, q, qd, tau, gravity, dqdd_dq, dqdd_dqd);
+  }
   batch::forward_dynamics_gradient(model_, B, q, qd, tau, fext, gravity, dqdd_dq, dqdd_dqd, nullptr, &ws_.get());
 }
 
@@ -186,6 +224,11 @@ void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd
 void Handle::integrator(long B, const double* q, const double* qd, const double* u, const double* fext, double dt,
                         double gravity, int type, double* x_next) {
   require("integrator");
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", u, "u");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->integrator<double>(B, q, qd, u, dt, gravity, type, x_next);
+  }
   batch::integrator(model_, B, q, qd, u, fext, dt, gravity, type, x_next);
 }
 
@@ -196,6 +239,11 @@ void Handle::integrator_gradient(long B, const double* q, const double* qd, cons
   if (!x_next) {
     x.resize(static_cast<size_t>(B * (model_.nq + model_.nv)));
     x_next = x.data();
+  }
+  if (engine_ && !fext) {
+    check_inputs(B, q, qd, "qd", u, "u");
+    check_finite(&gravity, 1, "gravity");
+    return engine_->integrator_gradient<double>(B, q, qd, u, dt, gravity, type, x_next, AB);
   }
   batch::integrator_gradient(model_, B, q, qd, u, fext, dt, gravity, type, x_next, AB);
 }
@@ -216,7 +264,7 @@ void Handle::plant_step(long B, const double* x, const double* u, const double* 
                         int type, double* x_next) {
   require("plant_step");
   split_state(model_, B, x, scratch_);
-  batch::integrator(model_, B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type, x_next);
+  integrator(B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type, x_next);
 }
 
 void Handle::plant_step_gradient(long B, const double* x, const double* u, const double* fext, double dt,
@@ -224,8 +272,7 @@ void Handle::plant_step_gradient(long B, const double* x, const double* u, const
   require("plant_step_gradient");
   split_state(model_, B, x, scratch_);
   std::vector<double> x_next(static_cast<size_t>(B * (model_.nq + model_.nv)));
-  batch::integrator_gradient(model_, B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type,
-                             x_next.data(), AB);
+  integrator_gradient(B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type, x_next.data(), AB);
 }
 
 void Handle::plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type,

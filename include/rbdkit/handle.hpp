@@ -19,6 +19,13 @@
 // quaternions) and a bad one throws std::invalid_argument naming it. An
 // operation the handle was not built with throws std::invalid_argument naming
 // the algorithm to add. A Handle keeps one workspace: one Handle per thread.
+//
+// threads > 0 gives the handle a batched CPU engine (engine.hpp) with that
+// many threads: inverse and forward dynamics, M, M⁻¹, both first-order
+// gradients, the integrator, the plant step and their gradients then run on
+// it whenever no f_ext is given (inputs are checked first, as above); results
+// are bit-identical whatever the thread count. threads = 0 (the default):
+// one sample at a time on the calling thread.
 #pragma once
 
 #include <Eigen/Core>
@@ -26,6 +33,7 @@
 #include <vector>
 
 #include "dynamics.hpp"
+#include "engine.hpp"
 
 namespace rbd {
 
@@ -50,10 +58,12 @@ using BatchMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen:
 
 class Handle {
  public:
-  // algorithms: names from handle_algorithms(); empty = every algorithm
-  explicit Handle(Model model, const std::vector<std::string>& algorithms = {});
+  // algorithms: names from handle_algorithms(); empty = every algorithm;
+  // threads: 0 (no engine) or the engine's thread count (negative: error)
+  explicit Handle(Model model, const std::vector<std::string>& algorithms = {}, int threads = 0);
 
   const Model& model() const { return model_; }
+  int threads() const { return engine_ ? engine_->threads() : 0; }
   // the resolved algorithm list (the requested ones and their dependencies)
   const std::vector<std::string>& algorithms() const { return algorithms_; }
   // the operations this handle provides, in table order
@@ -136,6 +146,10 @@ class Handle {
   std::vector<std::string> algorithms_;
   std::vector<std::string> operations_;
   WorkspaceBuffer ws_;
+  std::unique_ptr<Engine> engine_;  // null when threads = 0
+  // the engine's input checks (the batch:: entry points check their own)
+  void check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,
+                    const char* w_name) const;
   std::vector<double> scratch_;  // plant_step's split state
 };
 

@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
+#include <functional>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -296,5 +299,69 @@ INSTANTIATE_TEST_SUITE_P(Models, HandleCalls,
                              rbd_test::ModelCase{std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false},
                              rbd_test::ModelCase{std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true},
                              rbd_test::ModelCase{std::string(RBDKIT_ROBOTS_DIR) + "/atlas.urdf", true},
+                             rbd_test::ModelCase{std::string(RBDKIT_TEST_URDF_DIR) + "/spherical.urdf", true}),
+                         rbd_test::case_name);
+
+// ---- a handle with the batched engine (threads > 0)
+
+TEST(HandleThreads, NegativeThreadsAreAnError) {
+  EXPECT_THROW(Handle(hyq_floating(), {}, -1), std::invalid_argument);
+  EXPECT_EQ(Handle(hyq_floating()).threads(), 0);
+  EXPECT_EQ(Handle(hyq_floating(), {}, 2).threads(), 2);
+}
+
+TEST(HandleThreads, EngineInputsAreChecked) {
+  Handle h(hyq_floating(), {}, 2);
+  Samples s(h.model(), 3, 5);
+  s.q[1 * h.model().nq + 4] = 2.0;  // sample 1: not a unit quaternion
+  std::vector<double> M(3 * 18 * 18);
+  EXPECT_THROW(h.crba(3, s.q.data(), M.data()), std::invalid_argument);
+  Samples t(h.model(), 3, 6);
+  t.qd[5] = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> qdd(3 * 18);
+  EXPECT_THROW(h.aba(3, t.q.data(), t.qd.data(), t.u.data(), nullptr, -9.81, qdd.data()), std::invalid_argument);
+}
+
+class HandleEngine : public ::testing::TestWithParam<rbd_test::ModelCase> {};
+
+// the engine-backed calls: bit-identical for 1 and 3 threads, equal to the
+// one-sample-at-a-time handle (threads = 0) to rounding
+TEST_P(HandleEngine, ThreadCountDoesNotChangeTheNumbers) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  Handle h0(m), h1(m, {}, 1), h3(m, {}, 3);
+  const long B = 7;  // not a multiple of the SIMD width
+  const int nq = m.nq, nv = m.nv, nx = nq + nv;
+  const Samples s(m, B, 11);
+  using Call = std::function<void(Handle&, double*)>;
+  const std::vector<std::pair<const char*, std::pair<long, Call>>> calls = {
+      {"inverse_dynamics", {nv, [&](Handle& h, double* o) {
+         h.inverse_dynamics(B, s.q.data(), s.qd.data(), s.qdd.data(), nullptr, -9.81, o); }}},
+      {"crba", {nv * nv, [&](Handle& h, double* o) { h.crba(B, s.q.data(), o); }}},
+      {"minv", {nv * nv, [&](Handle& h, double* o) { h.minv(B, s.q.data(), o); }}},
+      {"aba", {nv, [&](Handle& h, double* o) { h.aba(B, s.q.data(), s.qd.data(), s.u.data(), nullptr, -9.81, o); }}},
+      {"inverse_dynamics_gradient", {2 * nv * nv, [&](Handle& h, double* o) {
+         h.inverse_dynamics_gradient(B, s.q.data(), s.qd.data(), s.qdd.data(), nullptr, -9.81, o, o + B * nv * nv); }}},
+      {"forward_dynamics_gradient", {2 * nv * nv, [&](Handle& h, double* o) {
+         h.forward_dynamics_gradient(B, s.q.data(), s.qd.data(), s.u.data(), nullptr, -9.81, o, o + B * nv * nv); }}},
+      {"plant_step", {nx, [&](Handle& h, double* o) {
+         h.plant_step(B, s.x.data(), s.u.data(), nullptr, 0.01, -9.81, rbd::kRK4, o); }}},
+      {"plant_step_gradient", {6 * nv * nv, [&](Handle& h, double* o) {
+         h.plant_step_gradient(B, s.x.data(), s.u.data(), nullptr, 0.01, -9.81, rbd::kRK4, o); }}},
+  };
+  for (const auto& c : calls) {
+    const long n = B * c.second.first;
+    std::vector<double> r0(n), r1(n), r3(n);
+    c.second.second(h0, r0.data());
+    c.second.second(h1, r1.data());
+    c.second.second(h3, r3.data());
+    EXPECT_EQ(0, std::memcmp(r1.data(), r3.data(), n * sizeof(double))) << c.first;
+    EXPECT_LT(rbd_test::max_rel_err(r1, r0), 1e-10) << c.first;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, HandleEngine,
+                         ::testing::Values(
+                             rbd_test::ModelCase{std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false},
+                             rbd_test::ModelCase{std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true},
                              rbd_test::ModelCase{std::string(RBDKIT_TEST_URDF_DIR) + "/spherical.urdf", true}),
                          rbd_test::case_name);
