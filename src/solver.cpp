@@ -419,7 +419,8 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
   }
   for (auto& Kk : K) Kk.setZero();
   CostEval c, cn;
-  double mu = o.mu_init;
+  // no limits: no barrier term, so no μ schedule to run through
+  double mu = p.position_limits || p.velocity_limits || p.torque_limits ? o.mu_init : o.mu_min;
   ev.eval(X, U, true, c);
   if (!std::isfinite(c.barrier)) {
     std::ostringstream os;

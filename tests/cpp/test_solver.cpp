@@ -223,3 +223,19 @@ TEST(Solver, BadInput) {
   q = p, q.R = -Eigen::VectorXd::Ones(m.nv);
   expect_error(q, "R");
 }
+
+// without limits there is no barrier, so no μ schedule: the solve stops as soon
+// as the iterations stall, in the same iterations as with μ already at mu_min
+TEST(Solver, NoLimitsSkipTheBarrierSchedule) {
+  rbd::Model m = iiwa();
+  rbd::Handle h(m);
+  rbd::TrajectoryProblem p = reach_problem(m, 25);
+  p.position_limits = p.velocity_limits = p.torque_limits = false;
+  rbd::SolverOptions o;
+  const rbd::SolverResult a = rbd::solve_trajectory(h, p, o);
+  o.mu_init = o.mu_min;
+  const rbd::SolverResult b = rbd::solve_trajectory(h, p, o);
+  EXPECT_TRUE(a.converged);
+  EXPECT_EQ(a.iterations, b.iterations);
+  for (const auto& rec : a.log) EXPECT_EQ(rec.mu, o.mu_min);
+}
