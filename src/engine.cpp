@@ -34,6 +34,14 @@
 #define RBDKIT_ENGINE_W32 (2 * RBDKIT_ENGINE_W64)
 #endif
 
+// the per-pack kernels inline everything they call (the engine's speed);
+// RBDKIT_ENGINE_NO_FLATTEN (the sanitizer build) skips that to compile faster
+#ifdef RBDKIT_ENGINE_NO_FLATTEN
+#define RBD_ENGINE_KERNEL
+#else
+#define RBD_ENGINE_KERNEL __attribute__((flatten))
+#endif
+
 namespace rbd {
 namespace {
 
@@ -314,7 +322,7 @@ void Engine::inverse_dynamics(long B, const T* q, const T* qd, const T* qdd, T g
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) __attribute__((flatten)) {
+  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     rnea(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
     return true;
   };
@@ -325,7 +333,7 @@ template <typename T> void Engine::crba(long B, const T* q, T* M) {
   auto& e = impl_as<T>(impl_.get(), "crba");
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
-  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) __attribute__((flatten)) {
+  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     rbd::crba(m, w, in[0], out[0]);
     return true;
   };
@@ -336,7 +344,7 @@ template <typename T> void Engine::minv(long B, const T* q, T* Minv) {
   auto& e = impl_as<T>(impl_.get(), "minv");
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
-  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) __attribute__((flatten)) {
+  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     return rbd::minv(m, w, in[0], true, out[0]);
   };
   e.run("minv", B, {{q, nq}}, {{Minv, long(nv) * nv}}, 0, k);
@@ -348,7 +356,7 @@ void Engine::forward_dynamics(long B, const T* q, const T* qd, const T* tau, T g
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) __attribute__((flatten)) {
+  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     return aba(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
   };
   e.run("forward_dynamics", B, {{q, nq}, {qd, nv}, {tau, nv}}, {{qdd, nv}}, 0, k);
@@ -361,7 +369,7 @@ void Engine::inverse_dynamics_gradient(long B, const T* q, const T* qd, const T*
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) __attribute__((flatten)) {
+  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     rnea_derivatives(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0], out[1]);
     return true;
   };
@@ -376,7 +384,7 @@ void Engine::forward_dynamics_gradient(long B, const T* q, const T* qd, const T*
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity);
-  auto k = [g, nv](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) __attribute__((flatten)) {
+  auto k = [g, nv](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
     if (!aba_derivatives(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, scratch, out[0], out[1]))
       return false;
     if (out[2]) {
@@ -397,7 +405,7 @@ void Engine::integrator(long B, const T* q, const T* qd, const T* u, T dt, T gra
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity), h(dt);
-  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) __attribute__((flatten)) {
+  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
     return integrator_step(m, w, type, in[0], in[1], in[2], static_cast<const P*>(nullptr), h, g, out[0],
                            out[0] + nq, scratch);
   };
@@ -413,7 +421,7 @@ void Engine::integrator_gradient(long B, const T* q, const T* qd, const T* u, T 
   using P = typename EngineT<T>::P;
   const int nq = e.model.nq, nv = e.model.nv;
   const P g(gravity), h(dt);
-  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) __attribute__((flatten)) {
+  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
     return rbd::integrator_gradient(m, w, type, in[0], in[1], in[2], static_cast<const P*>(nullptr), h, g, out[0],
                                     out[0] + nq, out[1], scratch);
   };
