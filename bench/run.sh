@@ -10,6 +10,8 @@
 #   in build/bench-inline).
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+# what the benchmark needs (Google Benchmark, the `pin` wheel): installed if missing
+bash "$ROOT/scripts/setup.sh" --test
 INLINE=OFF
 BUILD="$ROOT/build/bench"
 if [[ "${PINOCCHIO_INLINE:-0}" == 1 ]]; then INLINE=ON; BUILD="$ROOT/build/bench-inline"; fi

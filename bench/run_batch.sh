@@ -7,6 +7,8 @@
 # Environment: JOBS (2), REPS (3), MIN_TIME (0.1). Output: build/bench/batch.json
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+# what the benchmark needs (Google Benchmark, the `pin` wheel): installed if missing
+bash "$ROOT/scripts/setup.sh" --test
 BUILD="$ROOT/build/bench"
 JOBS=${JOBS:-2}
 REPS=${REPS:-3}
