@@ -129,8 +129,9 @@ def test_derivatives_come_from_the_handle(iiwa, default_solution):
     assert all(c[1] == (N, 14) and c[2] == (N, 7) for c in grads)
     assert res.derivative_knots == N * len(grads) == ref.derivative_knots
     assert len(grads) <= res.iterations
-    # the same derivatives as the C++ handle: the same iterates
-    np.testing.assert_array_equal(res.U, ref.U)
+    # the same derivatives as the C++ handle (the Python handle's go through the
+    # batched engine: equal to rounding): the same iterates
+    np.testing.assert_allclose(res.U, ref.U, rtol=0, atol=1e-9 * np.abs(ref.U).max())
     assert res.iterations == ref.iterations
 
 
