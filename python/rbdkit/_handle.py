@@ -195,13 +195,13 @@ class Handle:
 
     def available_operations(self):
         """the operations this handle provides, in table order"""
-        return [op for op in OPERATIONS if op in self._ops and hasattr(RBD, op)]
+        return [op for op in OPERATIONS if op in self._ops]
 
     def has(self, name):
         """whether operation `name` is built into this handle"""
         if not isinstance(name, str):
             raise TypeError(f"name: expected an operation name (str), got {type(name).__name__}")
-        return name in self._ops and hasattr(RBD, name)
+        return name in self._ops
 
     def fast_operations(self):
         """the operations that run on the batch engine (in the handle's
@@ -219,9 +219,7 @@ class Handle:
             alg = OPERATION_ALGORITHM[op]
             raise ValueError(f"{op}: this handle was not built with it; add '{alg}' to algorithms "
                              f"(Handle(model, algorithms=[..., '{alg}']))")
-        method = getattr(self.rbd, op, None)
-        if method is None:
-            raise NotImplementedError(f"{op}: not available in this build of rbdkit")
+        method = getattr(self.rbd, op)
         accepts = "output_convention" in inspect.signature(method).parameters
         conv = kwargs.get("output_convention", self.output_convention) if accepts else self.output_convention
         if accepts:
@@ -326,20 +324,21 @@ class Handle:
 
 
 def _operation_method(op):
-    ref = getattr(RBD, op, None)
+    ref = getattr(RBD, op)
 
     def method(self, *args, **kwargs):
         return self._call(op, args, kwargs)
 
     method.__name__ = method.__qualname__ = op
-    if ref is not None:
-        method.__signature__ = inspect.signature(ref)
-        method.__doc__ = ref.__doc__
-    else:
-        method.__doc__ = f"{op} (not available in this build of rbdkit)"
+    method.__signature__ = inspect.signature(ref)
+    method.__doc__ = ref.__doc__
     return method
 
 
+# the algorithm table (C++) and the RBD class must name the same operations
+_missing = [op for op in OPERATIONS if not hasattr(RBD, op)]
+if _missing:
+    raise ImportError(f"rbdkit: the algorithm table lists operations RBD lacks: {', '.join(_missing)}")
 for _op in OPERATIONS:
     setattr(Handle, _op, _operation_method(_op))
 del _op
