@@ -176,12 +176,12 @@ def test_dependencies_resolved(iiwa, algorithm):
     h = rbdkit.Handle(iiwa, algorithms=[algorithm])
     assert DEPENDENCIES[algorithm] | {algorithm} <= set(h.algorithms)
     # exactly the transitive closure, in table order
-    closure, todo = set(), [algorithm]
-    while todo:
-        a = todo.pop()
+    closure, pending = set(), [algorithm]
+    while pending:
+        a = pending.pop()
         if a not in closure:
             closure.add(a)
-            todo += ALGORITHMS[a][1]
+            pending += ALGORITHMS[a][1]
     assert h.algorithms == tuple(a for a in ALGORITHMS if a in closure)
 
 
