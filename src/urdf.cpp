@@ -1,14 +1,14 @@
-// URDF reader: XML (tinyxml2) -> Model.
+// URDF reader: XML (tinyxml2) -> ModelBuilder -> Model.
 //
 // outline:
 //   1. read links (inertials) and joints (type, origin, axis, limits, mimic)
 //   2. find the single root; reject cycles, second parents, missing links
-//   3. walk depth-first from the root, children in document order:
-//      fixed joints merge their child into the parent body (a frame remains),
-//      planar joints become two prismatic and one revolute sub-joint,
-//      every other joint makes a body
-//   4. resolve mimic joints (flatten chains, reject cycles)
-//   5. assign coordinates and limits
+//   3. walk depth-first from the root, children in document order, with an
+//      explicit stack (chains of any depth): fixed joints merge their child
+//      into the parent body (a frame remains), planar joints become two
+//      prismatic and one revolute sub-joint, every other joint makes a body
+//   4. mimic couplings (mimic = true) go to the builder, which flattens
+//      chains, rejects cycles and assigns coordinates and limits
 #include <tinyxml2.h>
 
 #include <Eigen/Eigenvalues>
@@ -20,6 +20,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "rbdkit/builder.hpp"
 #include "rbdkit/model.hpp"
 
 namespace rbd {
@@ -111,26 +112,37 @@ Inertia<double> parse_inertial(const tinyxml2::XMLElement* link, const std::stri
                  iyz = parse_number(t, "iyz", w, 0, true), izz = parse_number(t, "izz", w, 0, true);
     Ic = {{ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz}};
   }
-  // moments of inertia must be >= 0; a tensor with a negative principal
-  // moment (eigenvalue) is physically impossible but common in published
-  // files: an error when strict, else a warning kept on the model
+  // moments of inertia must be >= 0. A diagonal moment that is negative only
+  // by rounding (|I_kk| <= 1e-6 of the largest moment, or 1e-15 kg·m²) is
+  // kept with a warning; a clearly negative one is an error. A tensor with a
+  // negative principal moment (eigenvalue) or principal moments that break
+  // the triangle inequality is physically impossible but common in
+  // published files: an error when strict, else a warning kept on the model.
   const char* axes[3] = {"ixx", "iyy", "izz"};
-  for (int k = 0; k < 3; ++k)
-    if (Ic(k, k) < 0)
-      fail("link '" + lname + "' has a negative principal moment of inertia " + axes[k] + "=" +
-           std::to_string(Ic(k, k)) + " (moments of inertia must be >= 0)");
+  const double largest = std::max({std::fabs(Ic(0, 0)), std::fabs(Ic(1, 1)), std::fabs(Ic(2, 2))});
+  const double rounding = std::max(1e-6 * largest, 1e-15);
+  for (int k = 0; k < 3; ++k) {
+    if (Ic(k, k) >= 0) continue;
+    std::ostringstream os;
+    os << "link '" << lname << "' has a negative principal moment of inertia " << axes[k] << "=" << Ic(k, k);
+    if (Ic(k, k) < -rounding) fail(os.str() + " (moments of inertia must be >= 0)");
+    warnings.push_back(os.str() + ", negative only by rounding; kept as given");
+  }
   Eigen::Matrix3d E;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) E(r, c) = Ic(r, c);
   const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(E, Eigen::EigenvaluesOnly).eigenvalues();
   const double scale = std::max(1.0, ev.cwiseAbs().maxCoeff());
-  if (ev.minCoeff() < -1e-12 * scale) {
+  auto doubt = [&](const std::string& why) {
     std::ostringstream os;
-    os << "link '" << lname << "' has a rotational inertia with a negative principal moment (eigenvalue "
-       << ev.minCoeff() << "); it is not positive semi-definite";
+    os << "link '" << lname << "' has a rotational inertia " << why << " (principal moments " << ev(0) << ", "
+       << ev(1) << ", " << ev(2) << ")";
     if (strict) fail(os.str());
     warnings.push_back(os.str());
-  }
+  };
+  if (ev.minCoeff() < -1e-12 * scale) doubt("with a negative principal moment; it is not positive semi-definite");
+  else if (ev(2) > ev(0) + ev(1) + 1e-10 * std::fabs(E.trace()))
+    doubt("that violates the triangle inequality (the largest principal moment exceeds the sum of the other two)");
   // rotate to the link frame and move to its origin: I_o = R Ic Rᵀ - m [c]²
   const Vec3<double> c = X.p;
   const Mat3<double> C = skew(c);
@@ -164,11 +176,11 @@ Joint parse_joint(const tinyxml2::XMLElement* e) {
   j.child = c->Attribute("link");
   j.X = parse_origin(e, what);
   if (const tinyxml2::XMLElement* a = e->FirstChildElement("axis")) {
+    // kept as written: the builder normalises it on a moving joint and
+    // rejects a zero one there; a fixed joint's axis is never read
     if (const char* t = a->Attribute("xyz")) {
       auto v = parse_numbers(t, 3, what + " axis xyz");
-      const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-      if (n < 1e-12) fail(what + " has a zero axis");
-      j.axis = {v[0] / n, v[1] / n, v[2] / n};
+      j.axis = {v[0], v[1], v[2]};
     }
     j.pitch = parse_number(a, "pitch", what + " axis", 0.0);
   }
@@ -176,15 +188,12 @@ Joint parse_joint(const tinyxml2::XMLElement* e) {
     if (const tinyxml2::XMLElement* s = e->FirstChildElement("pitch")) j.pitch = parse_number(s, "value", what, j.pitch);
   }
   if (const tinyxml2::XMLElement* l = e->FirstChildElement("limit")) {
+    // lower > upper is kept with a warning (ModelBuilder), as Pinocchio keeps it
     j.lower = parse_number(l, "lower", what + " limit", -kInf);
     j.upper = parse_number(l, "upper", what + " limit", kInf);
     j.effort = parse_number(l, "effort", what + " limit", kInf);
     j.velocity = parse_number(l, "velocity", what + " limit", kInf);
-    if (j.lower > j.upper) fail(what + " has lower limit > upper limit");
-    if (j.effort <= 0) j.effort = kInf;      // 0 means "not given" in many files
-    if (j.velocity <= 0) j.velocity = kInf;
   }
-  if (j.type == "continuous") j.lower = -kInf, j.upper = kInf;
   if (const tinyxml2::XMLElement* m = e->FirstChildElement("mimic")) {
     const char* t = m->Attribute("joint");
     if (!t) fail(what + " <mimic> has no joint attribute");
@@ -200,125 +209,168 @@ bool one_dof(const std::string& t) {
   return t == "revolute" || t == "continuous" || t == "prismatic" || t == "helical";
 }
 
-// a body under construction: its joint, link and the frames fixed to it
-struct Builder {
+// a name is read back by Python as str: it must be valid UTF-8
+void check_utf8(const std::string& s, const std::string& what) {
+  size_t i = 0;
+  while (i < s.size()) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    // continuation bytes after the lead byte c
+    const int n = c < 0x80 ? 0 : (c & 0xE0) == 0xC0 ? 1 : (c & 0xF0) == 0xE0 ? 2 : (c & 0xF8) == 0xF0 ? 3 : -1;
+    bool ok = n >= 0 && i + n < s.size();
+    for (int k = 1; ok && k <= n; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
+    if (ok && n > 0) {
+      const unsigned char d = static_cast<unsigned char>(s[i + 1]);
+      if (n == 1) ok = c >= 0xC2;                                           // overlong
+      if (n == 2) ok = !(c == 0xE0 && d < 0xA0) && !(c == 0xED && d >= 0xA0);  // overlong, surrogates
+      if (n == 3) ok = c <= 0xF4 && !(c == 0xF0 && d < 0x90) && !(c == 0xF4 && d >= 0x90);
+    }
+    if (!ok) fail(what + " is not valid UTF-8 (at byte " + std::to_string(i) + ")");
+    i += n + 1;
+  }
+}
+
+// the URDF's links and joints, and the walk that hands them to a ModelBuilder
+struct Reader {
   std::vector<Link> links;
   std::vector<Joint> joints;
   std::map<std::string, int> link_id, joint_id;
-  Model model;
+  std::set<std::string> taken;  // every name in the file and every name generated so far
+  ModelBuilder builder;
 
-  // add body for joint j (child link carries inertia), returns body index
-  int add_body(int parent, int type, const Joint& j, const Transform<double>& X_tree, const Vec3<double>& axis,
-               const std::string& jname, const std::string& jtype, const std::string& body_name) {
-    BodyDesc<double> b{};
-    b.parent = parent;
-    b.type = type;
-    b.axis = axis;
-    b.pitch = jtype == "helical" ? j.pitch : 0.0;
-    b.mult = 1;
-    b.offset = 0;
-    b.X_tree = X_tree;
-    b.I = Inertia<double>::zero();
-    b.nq = type == kFree ? 7 : (type == kSpherical ? 4 : 1);
-    b.nv = type == kFree ? 6 : (type == kSpherical ? 3 : 1);
-    model.bodies.push_back(b);
-    model.body_names.push_back(body_name);
-    JointInfo ji;
-    ji.name = jname;
-    ji.type = jtype;
-    ji.body = static_cast<int>(model.bodies.size()) - 1;
-    model.joints.push_back(ji);
-    return ji.body;
+  // base, or base_1, base_2, ... : a generated name never equals a name of
+  // the file (a user joint "root_joint" keeps its name)
+  std::string unique_name(const std::string& base) {
+    std::string n = base;
+    for (int k = 1; taken.count(n); ++k) n = base + "_" + std::to_string(k);
+    taken.insert(n);
+    return n;
   }
 
-  // attach link l (and everything fixed to it) to body `body` at X_body_link
-  void attach(int l, int body, const Transform<double>& X_body_link, const std::string& via_joint) {
-    Link& L = links[l];
-    if (!via_joint.empty()) model.frames.push_back({via_joint, "joint", body, X_body_link});
-    model.frames.push_back({L.name, "link", body, X_body_link});
-    if (body >= 0) model.bodies[body].I += transform_inertia(X_body_link, L.I);
-    for (int jc : L.child_joints) {
-      const Joint& j = joints[jc];
+  // a body for the moving joint j under `parent`, placed at X_parent_joint
+  int add_body(int parent, const Joint& j, const std::string& name, const std::string& type,
+               const Transform<double>& X_parent_joint, const Vec3<double>& axis, const std::string& body_name,
+               bool limits) {
+    JointSpec s;
+    s.name = name;
+    s.type = type;
+    s.X_parent_joint = X_parent_joint;
+    s.axis = axis;
+    s.pitch = j.pitch;
+    if (limits) s.lower = j.lower, s.upper = j.upper, s.velocity = j.velocity, s.effort = j.effort;
+    return builder.add_body(parent, s, body_name);
+  }
+
+  // the frames and inertia of link l, fixed to `body` at X_body_link
+  void visit_link(int l, int body, const Transform<double>& X_body_link, const std::string& via_joint) {
+    const Link& L = links[l];
+    if (!via_joint.empty()) builder.add_frame(via_joint, "joint", body, X_body_link);
+    builder.add_frame(L.name, "link", body, X_body_link);
+    if (body >= 0) builder.add_inertia(body, L.I, X_body_link);
+  }
+
+  // depth-first from link `root` on `root_body`, children in document order
+  void walk(int root, int root_body, const std::string& root_via) {
+    struct Edge {
+      int joint, body;                // the joint to the child, the body its parent link is fixed to
+      Transform<double> X_body_link;  // the parent link in that body
+    };
+    std::vector<Edge> stack;
+    auto visit = [&](int l, int body, const Transform<double>& X, const std::string& via) {
+      visit_link(l, body, X, via);
+      const std::vector<int>& ch = links[l].child_joints;
+      for (auto it = ch.rbegin(); it != ch.rend(); ++it) stack.push_back({*it, body, X});
+    };
+    visit(root, root_body, Transform<double>::identity(), root_via);
+    while (!stack.empty()) {
+      const Edge e = stack.back();
+      stack.pop_back();
+      const Joint& j = joints[e.joint];
       const int child = link_id.at(j.child);
-      const Transform<double> X_tree = X_body_link * j.X;
+      const Transform<double> X_tree = e.X_body_link * j.X;
       if (j.type == "fixed") {
-        attach(child, body, X_tree, j.name);
+        visit(child, e.body, X_tree, j.name);
       } else if (j.type == "planar") {
         // the plane is normal to the axis: translate along two in-plane axes, rotate about the axis
-        const Vec3<double> n = j.axis;
+        const double s = std::max({std::fabs(j.axis.x), std::fabs(j.axis.y), std::fabs(j.axis.z)});
+        if (!(s > 0)) fail("joint '" + j.name + "' is planar with a zero axis (the plane's normal)");
+        Vec3<double> n = (1.0 / s) * j.axis;
+        n = (1.0 / std::sqrt(dot(n, n))) * n;
         Vec3<double> e1 = std::fabs(n.x) < 0.9 ? Vec3<double>{1, 0, 0} : Vec3<double>{0, 1, 0};
         e1 = e1 - dot(e1, n) * n;
         e1 = (1.0 / std::sqrt(dot(e1, e1))) * e1;
         const Vec3<double> e2 = cross(n, e1);
-        const int bx = add_body(body, kPrismatic, j, X_tree, e1, j.name + "_x", "prismatic", j.name + "_x");
-        const int by = add_body(bx, kPrismatic, j, Transform<double>::identity(), e2, j.name + "_y", "prismatic",
-                                j.name + "_y");
-        const int br = add_body(by, kRevolute, j, Transform<double>::identity(), n, j.name + "_rot", "revolute",
-                                links[child].name);
-        model.frames.push_back({j.name, "joint", br, Transform<double>::identity()});
-        attach(child, br, Transform<double>::identity(), "");
+        const Transform<double> I = Transform<double>::identity();
+        const std::string nx = unique_name(j.name + "_x"), ny = unique_name(j.name + "_y");
+        const std::string nr = unique_name(j.name + "_rot");
+        const int bx = add_body(e.body, j, nx, "prismatic", X_tree, e1, nx, false);
+        const int by = add_body(bx, j, ny, "prismatic", I, e2, ny, false);
+        const int br = add_body(by, j, nr, "revolute", I, n, links[child].name, false);
+        builder.add_frame(j.name, "joint", br, I);
+        visit(child, br, I, "");
       } else {
-        int type = kRevolute;
-        if (j.type == "prismatic") type = kPrismatic;
-        if (j.type == "helical") type = kHelical;
-        if (j.type == "spherical") type = kSpherical;
-        if (j.type == "floating") type = kFree;
-        const std::string jtype = j.type == "floating" ? "free" : j.type;
-        const int b = add_body(body, type, j, X_tree, j.axis, j.name, jtype, links[child].name);
-        attach(child, b, Transform<double>::identity(), j.name);
+        const std::string type = j.type == "floating" ? "free" : j.type;
+        const int b = add_body(e.body, j, j.name, type, X_tree, j.axis, links[child].name, true);
+        visit(child, b, Transform<double>::identity(), j.name);
       }
     }
   }
 };
 
-Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict) {
+Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict, bool mimic) {
   const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
   if (!robot) fail("no <robot> element at the top level");
-  Builder B;
-  B.model.name = robot->Attribute("name") ? robot->Attribute("name") : "";
-  B.model.floating_base = floating_base;
+  const std::string robot_name = robot->Attribute("name") ? robot->Attribute("name") : "";
+  check_utf8(robot_name, "the robot name");
+  Reader R;
+  R.builder = ModelBuilder(robot_name);
+  std::vector<std::string> warnings;
 
   // 1. links and joints
   for (const tinyxml2::XMLElement* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link")) {
     const char* name = e->Attribute("name");
     if (!name || !*name) fail("a <link> has no name");
-    if (B.link_id.count(name)) fail("link '" + std::string(name) + "' is defined twice");
+    check_utf8(name, "a link name");
+    if (R.link_id.count(name)) fail("link '" + std::string(name) + "' is defined twice");
     Link L;
     L.name = name;
-    L.I = parse_inertial(e, L.name, strict, B.model.warnings);
-    B.link_id[L.name] = static_cast<int>(B.links.size());
-    B.links.push_back(L);
+    L.I = parse_inertial(e, L.name, strict, warnings);
+    R.link_id[L.name] = static_cast<int>(R.links.size());
+    R.links.push_back(L);
+    R.taken.insert(L.name);
   }
-  if (B.links.empty()) fail("the robot has no <link>");
+  if (R.links.empty()) fail("the robot has no <link>");
   for (const tinyxml2::XMLElement* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint")) {
     Joint j = parse_joint(e);
-    if (B.joint_id.count(j.name)) fail("joint '" + j.name + "' is defined twice");
-    if (!B.link_id.count(j.parent)) fail("joint '" + j.name + "' names parent link '" + j.parent + "', which is not defined");
-    if (!B.link_id.count(j.child)) fail("joint '" + j.name + "' names child link '" + j.child + "', which is not defined");
+    check_utf8(j.name, "a joint name");
+    if (R.joint_id.count(j.name)) fail("joint '" + j.name + "' is defined twice");
+    if (!R.link_id.count(j.parent)) fail("joint '" + j.name + "' names parent link '" + j.parent + "', which is not defined");
+    if (!R.link_id.count(j.child)) fail("joint '" + j.name + "' names child link '" + j.child + "', which is not defined");
     if (j.parent == j.child) fail("joint '" + j.name + "' connects link '" + j.parent + "' to itself");
-    const int id = static_cast<int>(B.joints.size());
-    Link& child = B.links[B.link_id[j.child]];
+    const int id = static_cast<int>(R.joints.size());
+    Link& child = R.links[R.link_id[j.child]];
     if (child.parent_joint >= 0)
-      fail("link '" + j.child + "' is the child of two joints ('" + B.joints[child.parent_joint].name + "' and '" +
+      fail("link '" + j.child + "' is the child of two joints ('" + R.joints[child.parent_joint].name + "' and '" +
            j.name + "'); a URDF must be a tree");
     child.parent_joint = id;
-    B.links[B.link_id[j.parent]].child_joints.push_back(id);
-    B.joint_id[j.name] = id;
-    B.joints.push_back(j);
+    R.links[R.link_id[j.parent]].child_joints.push_back(id);
+    R.joint_id[j.name] = id;
+    R.joints.push_back(j);
+    R.taken.insert(j.name);
   }
+  for (const std::string& w : warnings) R.builder.add_warning(w);
 
   // 2. the root
   std::vector<int> roots;
-  for (size_t l = 0; l < B.links.size(); ++l)
-    if (B.links[l].parent_joint < 0) roots.push_back(static_cast<int>(l));
+  for (size_t l = 0; l < R.links.size(); ++l)
+    if (R.links[l].parent_joint < 0) roots.push_back(static_cast<int>(l));
   if (roots.empty()) fail("the joints form a cycle: every link has a parent, so there is no root link");
   if (roots.size() > 1)
-    fail("the robot has " + std::to_string(roots.size()) + " root links ('" + B.links[roots[0]].name + "' and '" +
-         B.links[roots[1]].name + "'); a URDF must be a single tree");
+    fail("the robot has " + std::to_string(roots.size()) + " root links ('" + R.links[roots[0]].name + "' and '" +
+         R.links[roots[1]].name + "'); a URDF must be a single tree");
   const int root = roots[0];
   {
     // every link reachable from the root, else the rest form a cycle
-    std::vector<int> seen(B.links.size(), 0), stack = {root};
+    std::vector<int> seen(R.links.size(), 0), stack = {root};
     size_t count = 0;
     while (!stack.empty()) {
       const int l = stack.back();
@@ -326,120 +378,74 @@ Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict) {
       if (seen[l]) continue;
       seen[l] = 1;
       ++count;
-      for (int jc : B.links[l].child_joints) stack.push_back(B.link_id[B.joints[jc].child]);
+      for (int jc : R.links[l].child_joints) stack.push_back(R.link_id[R.joints[jc].child]);
     }
-    if (count != B.links.size()) {
-      for (size_t l = 0; l < B.links.size(); ++l)
-        if (!seen[l]) fail("the joints form a cycle through link '" + B.links[l].name + "'");
+    if (count != R.links.size()) {
+      for (size_t l = 0; l < R.links.size(); ++l)
+        if (!seen[l]) fail("the joints form a cycle through link '" + R.links[l].name + "'");
     }
   }
 
   // 3. bodies, depth-first in document order
-  Model& m = B.model;
   if (floating_base) {
-    Joint free;
-    free.name = "root_joint";
-    const int b = B.add_body(-1, kFree, free, Transform<double>::identity(), {1, 0, 0}, "root_joint", "free",
-                             B.links[root].name);
-    B.attach(root, b, Transform<double>::identity(), "root_joint");
+    const std::string name = R.unique_name("root_joint");
+    if (name != "root_joint")
+      R.builder.add_warning("the file has a joint or link named 'root_joint'; the free-flyer added by floating_base "
+                            "is named '" + name + "'");
+    JointSpec free;
+    free.name = name;
+    free.type = "free";
+    const int b = R.builder.add_body(-1, free, R.links[root].name);
+    R.walk(root, b, name);
   } else {
-    B.attach(root, -1, Transform<double>::identity(), "");
+    R.walk(root, -1, "");
   }
 
-  // 4. mimic joints: flatten chains onto a joint that owns its coordinate
-  std::map<std::string, int> body_of_joint;
-  for (size_t i = 0; i < m.joints.size(); ++i) body_of_joint[m.joints[i].name] = static_cast<int>(i);
-  for (size_t i = 0; i < m.joints.size(); ++i) {
-    auto it = B.joint_id.find(m.joints[i].name);
-    if (it == B.joint_id.end() || !B.joints[it->second].has_mimic) continue;
-    const Joint& j = B.joints[it->second];
+  // 4. mimic couplings: folded into their target's coordinate (mimic), or
+  // independent coordinates (Pinocchio's default)
+  for (const Joint& j : R.joints) {
+    if (!j.has_mimic || !mimic) continue;
+    if (!R.joint_id.count(j.mimic_joint)) {
+      R.builder.add_warning("joint '" + j.name + "' mimics joint '" + j.mimic_joint +
+                            "', which is not defined; it is kept as an independent joint");
+      continue;
+    }
+    const Joint& t = R.joints[R.joint_id.at(j.mimic_joint)];
     if (!one_dof(j.type)) fail("joint '" + j.name + "' is a " + j.type + " joint; only 1-DoF joints can mimic");
-    double mult = 1, offset = 0;
-    std::string cur = j.name;
-    std::set<std::string> visited;
-    while (true) {
-      const Joint& cj = B.joints[B.joint_id.at(cur)];
-      if (!cj.has_mimic) break;
-      if (!visited.insert(cur).second) fail("mimic joints form a cycle through joint '" + cur + "'");
-      if (!B.joint_id.count(cj.mimic_joint))
-        fail("joint '" + cj.name + "' mimics joint '" + cj.mimic_joint + "', which is not defined");
-      const Joint& tj = B.joints[B.joint_id.at(cj.mimic_joint)];
-      if (!one_dof(tj.type)) fail("joint '" + cj.name + "' mimics '" + tj.name + "', a " + tj.type +
-                                  " joint; the target of a mimic must be a 1-DoF joint");
-      // q_cur = cj.mult q_t + cj.offset
-      offset = offset + mult * cj.offset;
-      mult = mult * cj.mult;
-      cur = tj.name;
-    }
-    m.joints[i].mimic_of = cur;
-    m.joints[i].multiplier = mult;
-    m.joints[i].offset = offset;
+    if (!one_dof(t.type))
+      fail("joint '" + j.name + "' mimics '" + t.name + "', a " + t.type +
+           " joint; the target of a mimic must be a 1-DoF joint");
+    R.builder.add_mimic(j.name, t.name, j.mult, j.offset);
   }
-
-  // 5. coordinates and limits, in body order
-  int nq = 0, nv = 0;
-  for (size_t i = 0; i < m.bodies.size(); ++i) {
-    if (!m.joints[i].mimic_of.empty()) continue;
-    BodyDesc<double>& b = m.bodies[i];
-    b.q_idx = nq;
-    b.v_idx = nv;
-    m.joints[i].q_idx = nq;
-    m.joints[i].v_idx = nv;
-    m.joints[i].nq = b.nq;
-    m.joints[i].nv = b.nv;
-    nq += b.nq;
-    nv += b.nv;
-    auto it = B.joint_id.find(m.joints[i].name);
-    const Joint* src = it != B.joint_id.end() ? &B.joints[it->second] : nullptr;
-    const bool planar_part = !src;  // sub-joints of a planar joint and the root joint
-    for (int k = 0; k < b.nq; ++k) {
-      const bool bounded = src && one_dof(src->type) && !planar_part;
-      m.lower.push_back(bounded ? src->lower : -kInf);
-      m.upper.push_back(bounded ? src->upper : kInf);
-    }
-    for (int k = 0; k < b.nv; ++k) {
-      m.velocity_limit.push_back(src && !planar_part ? src->velocity : kInf);
-      m.effort_limit.push_back(src && !planar_part ? src->effort : kInf);
-    }
-  }
-  for (size_t i = 0; i < m.bodies.size(); ++i) {
-    if (m.joints[i].mimic_of.empty()) continue;
-    const int t = body_of_joint.at(m.joints[i].mimic_of);
-    BodyDesc<double>& b = m.bodies[i];
-    b.mimic = 1;
-    b.q_idx = m.bodies[t].q_idx;
-    b.v_idx = m.bodies[t].v_idx;
-    b.nq = 1;
-    b.nv = 1;
-    b.mult = m.joints[i].multiplier;
-    b.offset = m.joints[i].offset;
-    m.joints[i].q_idx = b.q_idx;
-    m.joints[i].v_idx = b.v_idx;
-  }
-  m.nq = nq;
-  m.nv = nv;
-  m.finalize();
+  Model m = R.builder.build();
+  m.floating_base = floating_base;
   return m;
 }
 
 }  // namespace
 
-Model Model::from_urdf_string(const std::string& xml, bool floating_base, bool strict) {
+Model Model::from_urdf_string(const std::string& xml, bool floating_base, bool strict, bool mimic) {
   tinyxml2::XMLDocument doc;
   if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) {
     std::ostringstream os;
     os << "malformed XML: " << (doc.ErrorStr() ? doc.ErrorStr() : "parse error");
     fail(os.str());
   }
-  return build(doc, floating_base, strict);
+  try {
+    return build(doc, floating_base, strict, mimic);
+  } catch (const std::invalid_argument& e) {
+    const std::string msg = e.what();
+    if (msg.rfind("URDF: ", 0) == 0) throw;
+    fail(msg);
+  }
 }
 
-Model Model::from_urdf_file(const std::string& path, bool floating_base, bool strict) {
+Model Model::from_urdf_file(const std::string& path, bool floating_base, bool strict, bool mimic) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw std::invalid_argument("URDF: cannot open file '" + path + "'");
   std::stringstream ss;
   ss << f.rdbuf();
-  return from_urdf_string(ss.str(), floating_base, strict);
+  return from_urdf_string(ss.str(), floating_base, strict, mimic);
 }
 
 }  // namespace rbd

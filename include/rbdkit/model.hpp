@@ -2,7 +2,8 @@
 //
 // A Model owns the per-body descriptions the algorithms read (BodyDesc, see
 // joint.hpp) and everything a person asks for by name: joints, frames,
-// limits. It is built by the URDF reader (urdf.hpp). Host only.
+// limits. It is built by ModelBuilder (builder.hpp), which the URDF reader and
+// the MuJoCo importer use. Host only.
 #pragma once
 
 #include <string>
@@ -46,11 +47,17 @@ class Model {
 
   std::vector<std::string> warnings;     // what the reader accepted but doubts (non-PSD inertias)
 
-  // floating_base: add a free-flyer root joint "root_joint".
-  // strict: a rotational inertia with a negative eigenvalue is an error
-  // (otherwise a warning in `warnings`). Throws std::invalid_argument.
-  static Model from_urdf_file(const std::string& path, bool floating_base = false, bool strict = false);
-  static Model from_urdf_string(const std::string& xml, bool floating_base = false, bool strict = false);
+  // floating_base: add a free-flyer root joint "root_joint" (or root_joint_1,
+  // ... when the file already uses that name).
+  // strict: a rotational inertia with a negative eigenvalue or one that breaks
+  // the triangle inequality is an error (otherwise a warning in `warnings`).
+  // mimic: a <mimic> joint follows its target's coordinate (q = m·q_t + o);
+  // false: it is an independent coordinate (Pinocchio's default).
+  // Throws std::invalid_argument. Built through ModelBuilder (builder.hpp).
+  static Model from_urdf_file(const std::string& path, bool floating_base = false, bool strict = false,
+                              bool mimic = true);
+  static Model from_urdf_string(const std::string& xml, bool floating_base = false, bool strict = false,
+                                bool mimic = true);
 
   int nb() const { return static_cast<int>(bodies.size()); }
   bool has_mimic() const;
