@@ -9,6 +9,17 @@ from . import _core
 from ._checks import as_real_array
 
 
+def _flags(**flags):
+    """the values of boolean options, in order; a TypeError names any that is
+    not a bool (a numpy bool counts; "no", 1 or an array do not)"""
+    out = []
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected True or False, got {value!r} ({type(value).__name__})")
+        out.append(bool(value))
+    return out
+
+
 class Model:
     """A robot model: bodies, joints, frames and limits, read from URDF.
 
@@ -30,23 +41,28 @@ class Model:
             warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=3)
 
     @classmethod
-    def from_urdf(cls, path, floating_base=False, strict=False):
+    def from_urdf(cls, path, floating_base=False, strict=False, mimic=True):
         """Read a URDF file. floating_base adds a free-flyer root joint
         'root_joint' (q = [x, y, z, qx, qy, qz, qw, ...]); strict makes a
-        non-positive-semidefinite link inertia an error instead of a warning."""
+        physically impossible link inertia (a negative principal moment, the
+        triangle inequality broken) an error instead of a warning; mimic=True
+        folds each <mimic> joint into its target's coordinate, mimic=False
+        makes it an independent coordinate (Pinocchio's default)."""
         if not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"path: expected a file path (str or os.PathLike), got {type(path).__name__}")
         path = os.fspath(path)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"path: no URDF file at '{path}'")
-        return cls(_core.Model.from_urdf_file(path, bool(floating_base), bool(strict)))
+        flags = _flags(floating_base=floating_base, strict=strict, mimic=mimic)
+        return cls(_core.Model.from_urdf_file(path, *flags))
 
     @classmethod
-    def from_urdf_string(cls, xml, floating_base=False, strict=False):
-        """Read a URDF document given as a string."""
+    def from_urdf_string(cls, xml, floating_base=False, strict=False, mimic=True):
+        """Read a URDF document given as a string (options as from_urdf)."""
         if not isinstance(xml, str):
             raise TypeError(f"xml: expected the URDF text as str, got {type(xml).__name__}")
-        return cls(_core.Model.from_urdf_string(xml, bool(floating_base), bool(strict)))
+        flags = _flags(floating_base=floating_base, strict=strict, mimic=mimic)
+        return cls(_core.Model.from_urdf_string(xml, *flags))
 
     # ---- sizes and names
     name = property(lambda self: self._core.name)

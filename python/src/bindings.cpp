@@ -80,9 +80,10 @@ NB_MODULE(_core, m) {
   bind_costs(m);
 
   nb::class_<Model>(m, "Model")
-      .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false)
+      .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false,
+                  "mimic"_a = true)
       .def_static("from_urdf_string", &Model::from_urdf_string, "xml"_a, "floating_base"_a = false,
-                  "strict"_a = false)
+                  "strict"_a = false, "mimic"_a = true)
       .def_ro("name", &Model::name)
       .def_ro("nq", &Model::nq)
       .def_ro("nv", &Model::nv)
