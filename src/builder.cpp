@@ -186,7 +186,6 @@ Model ModelBuilder::build() {
   for (const Mimic& c : mimics_) {
     const int i = joint_of(c.joint, "mimic joint"), t = joint_of(c.target, "the target of mimic joint '" + c.joint + "',");
     if (direct[i] >= 0) fail("add_mimic: joint '" + c.joint + "' mimics two joints");
-    if (i == t) fail("add_mimic: joint '" + c.joint + "' mimics itself");
     if (!is_one_dof(i)) fail("add_mimic: joint '" + c.joint + "' is a " + m.joints[i].type + " joint; only 1-DoF joints can mimic");
     if (!is_one_dof(t))
       fail("add_mimic: joint '" + c.joint + "' mimics '" + c.target + "', a " + m.joints[t].type +
