@@ -40,6 +40,11 @@ struct JointSpec {
   double effort = std::numeric_limits<double>::infinity();
 };
 
+// the spatial inertia of a rigid body in its own frame from its mass, centre
+// of mass c (body frame) and rotational inertia I_com about c in body axes:
+// m, h = m c, I = I_com - m [c]²
+Inertia<double> rigid_inertia(double mass, const Vec3<double>& com, const Mat3<double>& I_com);
+
 class ModelBuilder {
  public:
   explicit ModelBuilder(std::string robot_name = "");

@@ -1,4 +1,4 @@
-"""rbdkit.Model: a robot read from URDF."""
+"""rbdkit.Model: a robot read from URDF or MuJoCo, or built in code."""
 
 import os
 import warnings
@@ -21,7 +21,9 @@ def _flags(**flags):
 
 
 class Model:
-    """A robot model: bodies, joints, frames and limits, read from URDF.
+    """A robot model: bodies, joints, frames and limits, read from URDF
+    (from_urdf), from MuJoCo (from_mujoco, from_mjcf) or built in code
+    (rbdkit.ModelBuilder).
 
     Attributes
       nq, nv        configuration and velocity widths
@@ -63,6 +65,24 @@ class Model:
             raise TypeError(f"xml: expected the URDF text as str, got {type(xml).__name__}")
         flags = _flags(floating_base=floating_base, strict=strict, mimic=mimic)
         return cls(_core.Model.from_urdf_string(xml, *flags))
+
+    @classmethod
+    def from_mujoco(cls, mjmodel):
+        """The rigid-body tree of a compiled mujoco.MjModel (MuJoCo has
+        resolved defaults, includes and inferred inertias). q follows qpos and
+        v follows qvel (a qvel index names the same DoF); convert states with
+        RBD.state_from_mujoco / state_to_mujoco (free joints: qvel = T v, see
+        RBD.mujoco_velocity_map). What is not rigid-body dynamics (armature,
+        damping, springs, equality constraints, tendons, actuators, contacts)
+        is left out with a warning. Gravity: pass gravity=mjmodel.opt.gravity[2]."""
+        from ._mujoco_import import from_mujoco
+        return from_mujoco(mjmodel)
+
+    @classmethod
+    def from_mjcf(cls, path):
+        """Compile an MJCF file with the mujoco package, then from_mujoco."""
+        from ._mujoco_import import from_mjcf
+        return from_mjcf(path)
 
     # ---- sizes and names
     name = property(lambda self: self._core.name)
