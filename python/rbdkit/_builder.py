@@ -254,6 +254,6 @@ class ModelBuilder:
             raise TypeError(f"text: expected a str, got {type(text).__name__}")
         self._b.add_warning(text)
 
-    def build(self):
+    def build(self, _stacklevel=3):
         """The rbdkit.Model. The builder is left empty."""
-        return Model(self._b.build())
+        return Model(self._b.build(), _stacklevel)

@@ -35,12 +35,12 @@ class Model:
       lower, upper  (nq,) position limits; velocity_limit, effort_limit (nv,)
     """
 
-    def __init__(self, core):
+    def __init__(self, core, _stacklevel=3):
         if not isinstance(core, _core.Model):
             raise TypeError("Model: build one with Model.from_urdf(path) or rbdkit.robots.load(name)")
         self._core = core
-        for w in core.warnings:
-            warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=3)
+        for w in core.warnings:  # shown at the caller's line (_stacklevel frames up from here)
+            warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=_stacklevel)
 
     @classmethod
     def from_urdf(cls, path, floating_base=False, strict=False, mimic=True):
@@ -76,13 +76,13 @@ class Model:
         damping, springs, equality constraints, tendons, actuators, contacts)
         is left out with a warning. Gravity: pass gravity=mjmodel.opt.gravity[2]."""
         from ._mujoco_import import from_mujoco
-        return from_mujoco(mjmodel)
+        return from_mujoco(mjmodel, _stacklevel=5)
 
     @classmethod
     def from_mjcf(cls, path):
         """Compile an MJCF file with the mujoco package, then from_mujoco."""
         from ._mujoco_import import from_mjcf
-        return from_mjcf(path)
+        return from_mjcf(path, _stacklevel=6)
 
     # ---- sizes and names
     name = property(lambda self: self._core.name)

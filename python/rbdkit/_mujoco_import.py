@@ -108,8 +108,9 @@ def _warn_unmodelled(m, b):
                       f"(pass gravity={g[2]} for its z part)")
 
 
-def from_mujoco(m):
-    """rbdkit.Model of a compiled mujoco.MjModel (see the module docstring)"""
+def from_mujoco(m, _stacklevel=4):
+    """rbdkit.Model of a compiled mujoco.MjModel (see the module docstring);
+    its warnings point _stacklevel frames up from ModelBuilder.build"""
     mujoco = _mujoco()
     if not isinstance(m, mujoco.MjModel):
         raise TypeError(f"mjmodel: expected a compiled mujoco.MjModel, got {type(m).__name__}")
@@ -180,7 +181,7 @@ def from_mujoco(m):
         X = X_rbd_mj[i] * _X(_quat_wxyz_to_R(m.site_quat[s]), m.site_pos[s])
         b.add_frame(sname, int(rbd_body[i]), placement=X.pair(), kind="site")
     _warn_unmodelled(m, b)
-    model = b.build()
+    model = b.build(_stacklevel)
     # q follows qpos and v follows qvel: check the layout against MuJoCo's
     for j in range(m.njnt):
         info = model.joints[j]  # one rbdkit body per MuJoCo joint, in the same order
@@ -192,7 +193,7 @@ def from_mujoco(m):
     return model
 
 
-def from_mjcf(path):
+def from_mjcf(path, _stacklevel=5):
     """compile an MJCF file with MuJoCo, then from_mujoco"""
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"path: expected a file path (str or os.PathLike), got {type(path).__name__}")
@@ -200,4 +201,4 @@ def from_mjcf(path):
     if not os.path.isfile(path):
         raise FileNotFoundError(f"path: no MJCF file at '{path}'")
     mujoco = _mujoco()
-    return from_mujoco(mujoco.MjModel.from_xml_path(path))
+    return from_mujoco(mujoco.MjModel.from_xml_path(path), _stacklevel)

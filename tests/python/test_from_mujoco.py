@@ -317,12 +317,33 @@ def test_warnings_name_what_is_not_imported():
     for what in ("springs", "tendons", "equality constraints", "cone limits", "gravity"):
         assert what in text, (what, text)
     assert "contacts" not in text
+    assert all(x.filename == __file__ for x in w)  # shown at the caller's line
 
 
-def test_bad_input():
+def test_warnings_point_at_the_caller(tmp_path):
+    path = tmp_path / "ant.xml"
+    path.write_text(open(os.path.join(gymnasium_assets(), "ant.xml")).read())
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        rbdkit.Model.from_mjcf(path)
+    assert any("actuators" in str(x.message) for x in w)
+    assert all(x.filename == __file__ for x in w)
+
+
+def test_bad_input(monkeypatch):
+    model = load(mujoco.MjModel.from_xml_string(FLOATING))
+    rbd = rbdkit.RBD(model)
+    qpos = rbd.state_to_mujoco(np.concatenate([model.neutral(), np.zeros(model.nv)]))[:model.nq]
+    with pytest.raises(ValueError, match="qpos: expected one configuration"):
+        rbd.mujoco_velocity_map(np.tile(qpos, (2, 1)))
+    with pytest.raises(ValueError, match="qpos"):
+        rbd.mujoco_velocity_map(np.zeros(3))
     with pytest.raises(TypeError, match="mjmodel"):
         rbdkit.Model.from_mujoco("arm.xml")
     with pytest.raises(FileNotFoundError, match="path"):
         rbdkit.Model.from_mjcf("/no/such/file.xml")
     with pytest.raises(TypeError, match="path"):
         rbdkit.Model.from_mjcf(3)
+    monkeypatch.setitem(__import__("sys").modules, "mujoco", None)  # mujoco stays optional
+    with pytest.raises(ImportError, match="need the mujoco package"):
+        rbdkit.Model.from_mujoco(object())
