@@ -249,7 +249,8 @@ def test_written_models_match_mujoco(name):
 
 
 @pytest.mark.parametrize("name", REAL)
-def test_real_models_match_mujoco(name):
+def test_real_models_match_mujoco(name, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs compiler warnings (half_cheetah's settotalmass) to MUJOCO_LOG.TXT
     mj = mujoco.MjModel.from_xml_path(os.path.join(gymnasium_assets(), name + ".xml"))
     errs = check_against_mujoco(mj, samples=2)
     assert max(errs.values()) < TOL, errs
