@@ -72,7 +72,7 @@ class Model:
         resolved defaults, includes and inferred inertias). q follows qpos and
         v follows qvel (a qvel index names the same DoF); convert states with
         RBD.state_from_mujoco / state_to_mujoco (free joints: qvel = T v, see
-        RBD.mujoco_velocity_map). What is not rigid-body dynamics (armature,
+        Model.mujoco_velocity_map). What is not rigid-body dynamics (armature,
         damping, springs, equality constraints, tendons, actuators, contacts)
         is left out with a warning. Gravity: pass gravity=mjmodel.opt.gravity[2]."""
         from ._mujoco_import import from_mujoco
@@ -141,6 +141,20 @@ class Model:
         new = object.__new__(Model)  # no second round of the reader's warnings
         new._core = self._core.with_inertial_parameters(a.tolist())
         return new
+
+    def mujoco_velocity_map(self, qpos):
+        """T (nv, nv) with qvel = T v at one configuration qpos (nq,) in
+        MuJoCo's layout (quaternions w x y z): on each free joint the linear
+        block is the joint's rotation R (ṗ = R v_lin), identity elsewhere
+        (docs/conventions.md, MuJoCo models in). T is orthogonal: v = Tᵀ
+        qvel, qfrc = T u, M = Tᵀ M_mj T."""
+        q = as_real_array(qpos, "qpos")
+        if q.shape != (self.nq,):
+            raise ValueError(f"qpos: expected one configuration of shape ({self.nq},), got shape {q.shape}")
+        Tt = np.empty((self.nv, self.nv))  # row k: T e_k (force_to_mujoco is u -> T u)
+        _core.force_to_mujoco(self._core, np.ascontiguousarray(np.repeat(q[None], self.nv, axis=0)),
+                              np.eye(self.nv), Tt)
+        return Tt.T.copy()
 
     def random_configuration(self, rng=None, scale=1.0):
         """a random configuration: neutral ⊕ uniform(-scale, scale) tangent

@@ -15,8 +15,6 @@ A model without free or ball joints is unchanged. Default: "pinocchio"
 See include/rbdkit/algorithms/mujoco_convention.hpp.
 """
 
-import numpy as np
-
 from . import _core
 from ._checks import Batch
 
@@ -63,20 +61,6 @@ class MujocoMixin:
     def force_from_mujoco(self, qpos, u):
         """generalized force u (nv,) in MuJoCo's frames (qfrc) at qpos -> ours."""
         return self._force_map(qpos, u, _core.force_from_mujoco)
-
-    def mujoco_velocity_map(self, qpos):
-        """T (nv, nv) with qvel = T v at qpos (nq,) in MuJoCo's layout, one
-        sample: on each free joint the linear block is the joint's rotation R
-        (ṗ = R v_lin), identity elsewhere. T is orthogonal: v = Tᵀ qvel,
-        u_mj = T u and M = Tᵀ M_mj T."""
-        b = Batch()
-        iq = self._q(b, qpos, "qpos")
-        if b.batched:
-            raise ValueError(f"qpos: expected one configuration of shape ({self.nq},), got a batch")
-        eye = np.eye(self.nv)
-        Tt = np.empty((self.nv, self.nv))  # row k: T e_k
-        _core.force_to_mujoco(self._m, np.repeat(b.get(iq), self.nv, axis=0), eye, Tt)
-        return Tt.T.copy()
 
     def mujoco_integrate(self, qpos, v):
         """MuJoCo's qpos ⊕ v (mj_integratePos with a unit step): (nq,)."""

@@ -7,7 +7,7 @@ mujoco.MjModel and builds the same tree through rbdkit.ModelBuilder.
   - bodies are read in MuJoCo's order, so q follows qpos and v follows qvel
     (a qvel index names the same DoF in both); the state and force maps are
     RBD.state_from_mujoco / state_to_mujoco / force_*_mujoco and
-    RBD.mujoco_velocity_map (the output convention, docs/conventions.md)
+    Model.mujoco_velocity_map (the output convention, docs/conventions.md)
   - hinge -> revolute, slide -> prismatic, ball -> spherical, free -> free;
     a joint turns about (or slides along) its axis through its anchor
     jnt_pos; a hinge or slide `ref` is folded into the placement, so q = qpos

@@ -215,7 +215,7 @@ def check_against_mujoco(mj, samples=3, seed=0):
         M_mj, bias_mj, d = mujoco_reference(mj, qpos, qvel)
         x = rbd.state_from_mujoco(np.concatenate([qpos, qvel]))
         q, v = x[:model.nq], x[model.nq:]
-        T = rbd.mujoco_velocity_map(qpos)
+        T = model.mujoco_velocity_map(qpos)
         assert np.allclose(T @ v, qvel, rtol=0, atol=1e-12)
         errs["M"] = max(errs["M"], rel_err(rbd.crba(q), T.T @ M_mj @ T))
         nle_ref = T.T @ (bias_mj + M_mj @ qvel_rate(model, qpos, v))
@@ -336,9 +336,11 @@ def test_bad_input(monkeypatch):
     rbd = rbdkit.RBD(model)
     qpos = rbd.state_to_mujoco(np.concatenate([model.neutral(), np.zeros(model.nv)]))[:model.nq]
     with pytest.raises(ValueError, match="qpos: expected one configuration"):
-        rbd.mujoco_velocity_map(np.tile(qpos, (2, 1)))
+        model.mujoco_velocity_map(np.tile(qpos, (2, 1)))
     with pytest.raises(ValueError, match="qpos"):
-        rbd.mujoco_velocity_map(np.zeros(3))
+        model.mujoco_velocity_map(np.zeros(3))
+    with pytest.raises(ValueError, match="unit norm"):
+        model.mujoco_velocity_map(np.zeros(model.nq))
     with pytest.raises(TypeError, match="mjmodel"):
         rbdkit.Model.from_mujoco("arm.xml")
     with pytest.raises(FileNotFoundError, match="path"):
