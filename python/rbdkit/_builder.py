@@ -212,9 +212,6 @@ class ModelBuilder:
         for n, x in (("velocity", vel), ("effort", eff)):
             if not x > 0:
                 raise ValueError(f"{n}: expected a limit > 0 (inf: none), got {x}")
-        if joint_type == "free" and p_index != -1:
-            raise ValueError(f"parent: a free joint ({joint_name!r}) moves a body relative to the world; "
-                             f"expected None or -1, got {parent!r}")
         pitch = _finite(pitch, "pitch")
         return self._b.add_body(p_index, joint_name, joint_type, body_name, _flat(R), _flat(p), _flat(ax), pitch,
                                 lo, hi, vel, eff, m, _flat(c), _flat(I))

@@ -168,7 +168,7 @@ TEST(Builder, CodeEqualsUrdfBitForBit) {
 
 TEST(Builder, BadInputNamesIt) {
   const Transform<double> I = Transform<double>::identity();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
   JointSpec j;
   j.name = "j";
   j.type = "revolute";
@@ -197,9 +197,6 @@ TEST(Builder, BadInputNamesIt) {
   EXPECT_NE(error_of([&] {
               b.add_body(a, with([](JointSpec& s) { s.name = "k", s.X_parent_joint.R(0, 0) = 2; }), "x");
             }).find("not orthonormal"),
-            std::string::npos);
-  EXPECT_NE(error_of([&] { b.add_body(a, with([](JointSpec& s) { s.name = "k", s.type = "free"; }), "x"); })
-                .find("free"),
             std::string::npos);
   EXPECT_NE(error_of([&] { b.add_body(a, with([](JointSpec& s) { s.name = ""; }), "x"); }).find("no name"),
             std::string::npos);

@@ -153,7 +153,6 @@ def test_mimic_and_warning():
     (dict(joint_type="continuous", lower=-1, upper=1), ValueError, "no position limits"),
     (dict(velocity=0), ValueError, "velocity"),
     (dict(effort=-1), ValueError, "effort"),
-    (dict(joint_type="free", parent="A"), ValueError, "free joint"),
     (dict(joint_name="a"), ValueError, "a joint named 'a' already exists"),
     (dict(body_name="A"), ValueError, "a body named 'A' already exists"),
 ])
