@@ -18,13 +18,15 @@ mujoco.MjModel and builds the same tree through rbdkit.ModelBuilder.
     compiler allows only slides after a ball joint, and a free joint only
     alone on a child of the world)
   - a body without joints is welded to its parent (inertia merged)
-  - frames: each MuJoCo body (kind "body"), joint ("joint", at its anchor)
+  - frames: each MuJoCo body (kind "body"), joint ("joint": the joint frame at
+    its anchor, moved by the joint)
     and site ("site") by name; unnamed ones get "body<i>", "<body>_joint<k>",
     "site<i>"
 What MuJoCo adds beyond rigid-body dynamics (armature, damping, friction
 loss, springs, gravity compensation, equality constraints, tendons,
-actuators, contacts, joint limits as constraints) is not imported; the model
-warns about each kind it finds. Gravity: rbdkit's is along z (gravity=
+actuators, contacts, flexes, plugins, fluid forces) is not imported; the
+model warns about each kind it finds. Hinge and slide ranges become the
+position limits (lower, upper), not constraint forces. Gravity: rbdkit's is along z (gravity=
 mj.opt.gravity[2] in the RBD calls); a model whose gravity has x or y parts
 gets a warning.
 """
@@ -82,7 +84,7 @@ def _unique(name, taken):
     return n
 
 
-def _warn_unmodelled(m, b):
+def _warn_unmodelled(mujoco, m, b):
     """one warning per kind of MuJoCo feature that the rigid-body model leaves out"""
     def note(count, what):
         if count:
@@ -102,8 +104,14 @@ def _warn_unmodelled(m, b):
     note(len(limited), f"cone limits of {len(limited)} ball joints:")
     mocap = int(np.count_nonzero(m.body_mocapid >= 0))
     note(mocap, f"{mocap} mocap bodies (welded at their model pose here):")
+    note(m.nflex, f"{m.nflex} flexes (deformable elements):")
+    note(m.nplugin, f"{m.nplugin} plugins:")
+    fluid = m.opt.density > 0 or m.opt.viscosity > 0 or np.any(m.opt.wind != 0)
+    note(fluid, f"fluid forces (density {m.opt.density}, viscosity {m.opt.viscosity}):")
     g = np.asarray(m.opt.gravity, dtype=np.float64)
-    if g[0] != 0 or g[1] != 0:
+    if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+        b.add_warning("the model disables gravity; pass gravity=0 to match it")
+    elif g[0] != 0 or g[1] != 0:
         b.add_warning(f"the model's gravity {g.tolist()} has x or y parts; rbdkit's gravity is along z "
                       f"(pass gravity={g[2]} for its z part)")
 
@@ -180,7 +188,7 @@ def from_mujoco(m, _stacklevel=4):
         sname = _unique(m.site(s).name or f"site{s}", taken_frames)
         X = X_rbd_mj[i] * _X(_quat_wxyz_to_R(m.site_quat[s]), m.site_pos[s])
         b.add_frame(sname, int(rbd_body[i]), placement=X.pair(), kind="site")
-    _warn_unmodelled(m, b)
+    _warn_unmodelled(mujoco, m, b)
     model = b.build(_stacklevel)
     # q follows qpos and v follows qvel: check the layout against MuJoCo's
     for j in range(m.njnt):

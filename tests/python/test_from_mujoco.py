@@ -319,6 +319,13 @@ def test_warnings_name_what_is_not_imported():
         assert what in text, (what, text)
     assert "contacts" not in text
     assert all(x.filename == __file__ for x in w)  # shown at the caller's line
+    mj = mujoco.MjModel.from_xml_string("""
+<mujoco><option density="1.2" viscosity="0.1"><flag gravity="disable"/></option>
+<worldbody><body><joint name="h"/><geom size="0.1" contype="0" conaffinity="0"/></body></worldbody></mujoco>""")
+    with pytest.warns(UserWarning) as w:
+        rbdkit.Model.from_mujoco(mj)
+    text = "\n".join(str(x.message) for x in w)
+    assert "fluid forces" in text and "disables gravity" in text, text
 
 
 def test_warnings_point_at_the_caller(tmp_path):
