@@ -18,10 +18,9 @@ mujoco.MjModel and builds the same tree through rbdkit.ModelBuilder.
     compiler allows only slides after a ball joint, and a free joint only
     alone on a child of the world)
   - a body without joints is welded to its parent (inertia merged)
-  - frames: each MuJoCo body (kind "body"), joint ("joint": the joint frame at
-    its anchor, moved by the joint)
-    and site ("site") by name; unnamed ones get "body<i>", "<body>_joint<k>",
-    "site<i>"
+  - frames: each MuJoCo body (kind "body"), joint ("joint": the joint frame
+    at its anchor, moved by the joint) and site ("site") by name; unnamed
+    ones get "body<i>", "<body>_joint<k>", "site<i>"
 What MuJoCo adds beyond rigid-body dynamics (armature, damping, friction
 loss, springs, gravity compensation, equality constraints, tendons,
 actuators, contacts, flexes, plugins, fluid forces) is not imported; the
