@@ -34,7 +34,7 @@ import os
 
 import numpy as np
 
-from ._builder import ModelBuilder
+from ._builder import ModelBuilder, rotation_from_quat
 
 # mjtJoint
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
@@ -50,10 +50,9 @@ def _mujoco():
 
 
 def _quat_wxyz_to_R(q):
+    """the rotation of MuJoCo's quaternion (w, x, y, z)"""
     w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return rotation_from_quat((x, y, z, w))
 
 
 def _axis_angle(u, t):
