@@ -70,6 +70,15 @@ Vec3<double> unit_axis(const Vec3<double>& a, const std::string& what) {
 
 }  // namespace
 
+Inertia<double> rigid_inertia(double mass, const Vec3<double>& com, const Mat3<double>& I_com) {
+  const Mat3<double> C = skew(com);
+  Inertia<double> I;
+  I.m = mass;
+  I.h = mass * com;
+  I.I = I_com - mass * (C * C);
+  return I;
+}
+
 ModelBuilder::ModelBuilder(std::string robot_name) { model_.name = std::move(robot_name); }
 
 int ModelBuilder::body_index(const std::string& body_name) const {

@@ -40,6 +40,11 @@ struct JointSpec {
   double effort = std::numeric_limits<double>::infinity();
 };
 
+// the spatial inertia of a rigid body in its own frame from its mass, centre
+// of mass c (body frame) and rotational inertia I_com about c in body axes:
+// m, h = m c, I = I_com - m [c]²
+Inertia<double> rigid_inertia(double mass, const Vec3<double>& com, const Mat3<double>& I_com);
+
 class ModelBuilder {
  public:
   explicit ModelBuilder(std::string robot_name = "");
@@ -48,7 +53,8 @@ class ModelBuilder {
   // world); I_body is its spatial inertia in its own frame. Returns the body
   // index. Throws std::invalid_argument for an unknown parent, a name already
   // used by a joint (or body), an unknown type, a zero or non-finite axis, a
-  // non-finite placement, lower > upper, or a free joint under another body.
+  // non-finite placement or a NaN limit (lower > upper is a warning). A free
+  // joint may sit under another body (URDF "floating" joints do).
   int add_body(int parent, const JointSpec& joint, const std::string& body_name,
                const Inertia<double>& I_body = Inertia<double>::zero());
   // rigidly attach an inertia to a body (a merged fixed link): I_link in a

@@ -1,4 +1,4 @@
-"""rbdkit.Model: a robot read from URDF."""
+"""rbdkit.Model: a robot read from URDF or MuJoCo, or built in code."""
 
 import os
 import warnings
@@ -21,7 +21,9 @@ def _flags(**flags):
 
 
 class Model:
-    """A robot model: bodies, joints, frames and limits, read from URDF.
+    """A robot model: bodies, joints, frames and limits, read from URDF
+    (from_urdf), from MuJoCo (from_mujoco, from_mjcf) or built in code
+    (rbdkit.ModelBuilder).
 
     Attributes
       nq, nv        configuration and velocity widths
@@ -33,12 +35,12 @@ class Model:
       lower, upper  (nq,) position limits; velocity_limit, effort_limit (nv,)
     """
 
-    def __init__(self, core):
+    def __init__(self, core, _stacklevel=3):
         if not isinstance(core, _core.Model):
             raise TypeError("Model: build one with Model.from_urdf(path) or rbdkit.robots.load(name)")
         self._core = core
-        for w in core.warnings:
-            warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=3)
+        for w in core.warnings:  # shown at the caller's line (_stacklevel frames up from here)
+            warnings.warn(f"{core.name or 'URDF'}: {w}", UserWarning, stacklevel=_stacklevel)
 
     @classmethod
     def from_urdf(cls, path, floating_base=False, strict=False, mimic=True):
@@ -63,6 +65,24 @@ class Model:
             raise TypeError(f"xml: expected the URDF text as str, got {type(xml).__name__}")
         flags = _flags(floating_base=floating_base, strict=strict, mimic=mimic)
         return cls(_core.Model.from_urdf_string(xml, *flags))
+
+    @classmethod
+    def from_mujoco(cls, mjmodel):
+        """The rigid-body tree of a compiled mujoco.MjModel (MuJoCo has
+        resolved defaults, includes and inferred inertias). q follows qpos and
+        v follows qvel (a qvel index names the same DoF); convert states with
+        RBD.state_from_mujoco / state_to_mujoco (free joints: qvel = T v, see
+        Model.mujoco_velocity_map). What is not rigid-body dynamics (armature,
+        damping, springs, equality constraints, tendons, actuators, contacts)
+        is left out with a warning. Gravity: pass gravity=mjmodel.opt.gravity[2]."""
+        from ._mujoco_import import from_mujoco
+        return from_mujoco(mjmodel, _stacklevel=5)
+
+    @classmethod
+    def from_mjcf(cls, path):
+        """Compile an MJCF file with the mujoco package, then from_mujoco."""
+        from ._mujoco_import import from_mjcf
+        return from_mjcf(path, _stacklevel=6)
 
     # ---- sizes and names
     name = property(lambda self: self._core.name)
@@ -121,6 +141,20 @@ class Model:
         new = object.__new__(Model)  # no second round of the reader's warnings
         new._core = self._core.with_inertial_parameters(a.tolist())
         return new
+
+    def mujoco_velocity_map(self, qpos):
+        """T (nv, nv) with qvel = T v at one configuration qpos (nq,) in
+        MuJoCo's layout (quaternions w x y z): on each free joint the linear
+        block is the joint's rotation R (ṗ = R v_lin), identity elsewhere
+        (docs/conventions.md, MuJoCo models in). T is orthogonal: v = Tᵀ
+        qvel, qfrc = T u, M = Tᵀ M_mj T."""
+        q = as_real_array(qpos, "qpos")
+        if q.shape != (self.nq,):
+            raise ValueError(f"qpos: expected one configuration of shape ({self.nq},), got shape {q.shape}")
+        Tt = np.empty((self.nv, self.nv))  # row k: T e_k (force_to_mujoco is u -> T u)
+        _core.force_to_mujoco(self._core, np.ascontiguousarray(np.repeat(q[None], self.nv, axis=0)),
+                              np.eye(self.nv), Tt)
+        return Tt.T.copy()
 
     def random_configuration(self, rng=None, scale=1.0):
         """a random configuration: neutral ⊕ uniform(-scale, scale) tangent

@@ -38,6 +38,7 @@ void bind_handle(nb::module_& m);  // bind_handle.cpp
 void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
 void bind_engine(nb::module_& m);  // bind_engine.cpp
+void bind_builder(nb::module_& m);  // bind_builder.cpp
 
 
 namespace {
@@ -208,4 +209,5 @@ NB_MODULE(_core, m) {
   bind_mujoco(m);
   bind_solver(m);
   bind_engine(m);
+  bind_builder(m);
 }
