@@ -411,6 +411,12 @@ Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict, b
       continue;
     }
     const Joint& t = R.joints[R.joint_id.at(j.mimic_joint)];
+    if (j.type == "fixed") {
+      // a fixed joint has no coordinate to couple (Pinocchio ignores it too)
+      R.builder.add_warning("joint '" + j.name + "' is fixed; its <mimic> of joint '" + j.mimic_joint +
+                            "' is ignored");
+      continue;
+    }
     if (!one_dof(j.type)) fail("joint '" + j.name + "' is a " + j.type + " joint; only 1-DoF joints can mimic");
     if (!one_dof(t.type))
       fail("joint '" + j.name + "' mimics '" + t.name + "', a " + t.type +

@@ -12,7 +12,9 @@ and the map between the two coordinate systems:
     coordinates are matched by joint name;
   * Pinocchio's continuous joints use (cos, sin) coordinates;
   * mimic joints are independent joints in the Pinocchio model, and
-    v_pin = G v, q_pin = map(q): reduced quantities are Gᵀ(·)G.
+    v_pin = G v, q_pin = map(q): reduced quantities are Gᵀ(·)G; with
+    pin_mimic=True Pinocchio's own mimic joints (no coordinates) are used
+    instead, and G is a permutation.
 """
 
 import os
@@ -87,8 +89,8 @@ def _rebuild(pm, replace):
 class Reference:
     """A Pinocchio model mirroring an rbdkit model."""
 
-    def __init__(self, path, floating_base=False):
-        self.model = rbdkit.Model.from_urdf(path, floating_base=floating_base)
+    def __init__(self, path, floating_base=False, mimic=True, pin_mimic=False):
+        self.model = rbdkit.Model.from_urdf(path, floating_base=floating_base, mimic=mimic)
         with open(path) as f:
             xml = f.read()
         xml = _expand_planar(xml)
@@ -97,8 +99,11 @@ class Reference:
             f.write(xml)
             tmp = f.name
         try:
-            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer()) if floating_base
-                  else pin.buildModelFromUrdf(tmp))
+            # the free-flyer under rbdkit's name for it (root_joint, or a
+            # unique variant when the file has a joint of that name)
+            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer(), self.model.joints[0]["name"],
+                                         mimic=pin_mimic) if floating_base
+                  else pin.buildModelFromUrdf(tmp, mimic=pin_mimic))
         finally:
             os.unlink(tmp)
         self.pin = _rebuild(pm, replace) if replace else pm
@@ -115,6 +120,9 @@ class Reference:
             j = m.joint(name)
             self.body_of_joint[jid] = j["body"]
             pj = pm.joints[jid]
+            if pj.nv == 0:  # a Pinocchio mimic joint: no coordinates of its own
+                assert j["mimic_of"], f"{name} is a mimic joint in Pinocchio only"
+                continue
             self.entries.append((j, pj.idx_q, pj.idx_v, pj.nq, pj.nv))
             if j["mimic_of"]:
                 self.G[pj.idx_v, j["v_index"]] = j["multiplier"]
