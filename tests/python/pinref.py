@@ -255,6 +255,37 @@ def assert_close(actual, reference, what, rtol=1e-9):
     assert ok, f"{what}: max error {err:.3e} > {rtol:g} x {scale:.3g}"
 
 
+def compare_dynamics(ref, what, singular=False, seed=0):
+    """RNEA, CRBA and ABA of the rbdkit model against the Pinocchio reference
+    at two random states (the second with high velocities); on a singular
+    mass matrix, ABA must raise in rbdkit and give NaN in Pinocchio"""
+    m = ref.model
+    assert sorted(ref.bodies) == list(range(m.nb)), f"{what}: Pinocchio's joints are not rbdkit's bodies"
+    assert np.linalg.matrix_rank(ref.G) == m.nv, f"{what}: coordinates unmatched"
+    rbd = rbdkit.RBD(m)
+    rng = np.random.default_rng(seed)
+    for k in range(2):
+        q = m.random_configuration(rng, scale=np.pi)
+        qd = rng.uniform(-1, 1, m.nv) * (3.0 if k == 0 else 30.0)
+        qdd = rng.uniform(-5, 5, m.nv)
+        tau = rng.uniform(-50, 50, m.nv)
+        assert_close(rbd.inverse_dynamics(q, qd, qdd)[0], ref.rnea(q, qd, qdd)[0], f"{what}: RNEA")
+        M_ref = ref.crba(q)
+        assert_close(rbd.crba(q), M_ref, f"{what}: CRBA")
+        if singular:
+            w = np.linalg.eigvalsh(M_ref)
+            assert w[0] <= 1e-12 * w[-1], f"{what}: M is not singular"
+            try:
+                rbd.aba(q, qd, tau)
+                raise AssertionError(f"{what}: ABA did not raise on a singular mass matrix")
+            except RuntimeError as e:
+                assert "not positive definite" in str(e), e
+            if not m.has_mimic:
+                assert not np.all(np.isfinite(ref.forward(q, qd, tau))), f"{what}: Pinocchio's ABA is finite"
+        else:
+            assert_close(rbd.aba(q, qd, tau), ref.forward(q, qd, tau), f"{what}: ABA")
+
+
 # the models every equivalence test runs on: (id, path, floating_base)
 def all_models():
     cases = []

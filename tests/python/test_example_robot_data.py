@@ -32,7 +32,7 @@ import pinocchio as pin
 import pytest
 
 import rbdkit
-from pinref import Reference, assert_close
+from pinref import Reference, compare_dynamics
 
 
 def robots_dir():
@@ -101,34 +101,6 @@ def reference(path, fb, mimic, pin_mimic=False):
         return Reference(path, fb, mimic=mimic, pin_mimic=pin_mimic)
 
 
-def compare(ref, what, singular=False, seed=0):
-    """RNEA, CRBA and ABA of the rbdkit model against the Pinocchio reference
-    at two random states (the second with high velocities); on a singular
-    mass matrix, ABA must raise in rbdkit and give NaN in Pinocchio"""
-    m = ref.model
-    assert sorted(ref.bodies) == list(range(m.nb)), f"{what}: Pinocchio's joints are not rbdkit's bodies"
-    assert np.linalg.matrix_rank(ref.G) == m.nv, f"{what}: coordinates unmatched"
-    rbd = rbdkit.RBD(m)
-    rng = np.random.default_rng(seed)
-    for k in range(2):
-        q = m.random_configuration(rng, scale=np.pi)
-        qd = rng.uniform(-1, 1, m.nv) * (3.0 if k == 0 else 30.0)
-        qdd = rng.uniform(-5, 5, m.nv)
-        tau = rng.uniform(-50, 50, m.nv)
-        assert_close(rbd.inverse_dynamics(q, qd, qdd)[0], ref.rnea(q, qd, qdd)[0], f"{what}: RNEA")
-        M_ref = ref.crba(q)
-        assert_close(rbd.crba(q), M_ref, f"{what}: CRBA")
-        if singular:
-            w = np.linalg.eigvalsh(M_ref)
-            assert w[0] <= 1e-12 * w[-1], f"{what}: M is not singular"
-            with pytest.raises(RuntimeError, match="not positive definite"):
-                rbd.aba(q, qd, tau)
-            if not m.has_mimic:
-                assert not np.all(np.isfinite(ref.forward(q, qd, tau))), f"{what}: Pinocchio's ABA is finite"
-        else:
-            assert_close(rbd.aba(q, qd, tau), ref.forward(q, qd, tau), f"{what}: ABA")
-
-
 def test_files_found():
     # a missing or emptied package fails here, never skips
     assert len(FILES) >= 69, f"{len(FILES)} URDF files under {ROBOTS}"
@@ -152,10 +124,10 @@ def test_loads_and_agrees_with_pinocchio(rel):
             if model.nv == 0:
                 assert rel in NO_COORDINATES and not fb, f"{rel} ({base}) has no coordinates"
                 continue
-            compare(reference(path, fb, mimic), f"{rel} ({base}, mimic={mimic})", rel in SINGULAR)
+            compare_dynamics(reference(path, fb, mimic), f"{rel} ({base}, mimic={mimic})", rel in SINGULAR)
         if rel in PIN_MIMIC_REJECTS:
             with pytest.raises(ValueError, match="mimic"):
                 pin.buildModelFromUrdf(path, mimic=True)
         elif load_rbdkit(path, floating_base=fb, mimic=True).has_mimic:
-            compare(reference(path, fb, True, pin_mimic=True), f"{rel} ({base}, Pinocchio's mimic joints)",
+            compare_dynamics(reference(path, fb, True, pin_mimic=True), f"{rel} ({base}, Pinocchio's mimic joints)",
                     rel in SINGULAR)
