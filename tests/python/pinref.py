@@ -101,9 +101,9 @@ class Reference:
         try:
             # the free-flyer under rbdkit's name for it (root_joint, or a
             # unique variant when the file has a joint of that name)
-            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer(), self.model.joints[0]["name"],
-                                         mimic=pin_mimic) if floating_base
-                  else pin.buildModelFromUrdf(tmp, mimic=pin_mimic))
+            kw = {"mimic": True} if pin_mimic else {}
+            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer(), self.model.joints[0]["name"], **kw)
+                  if floating_base else pin.buildModelFromUrdf(tmp, **kw))
         finally:
             os.unlink(tmp)
         self.pin = _rebuild(pm, replace) if replace else pm
