@@ -13,12 +13,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
-#include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "rbdkit/builder.hpp"
 #include "rbdkit/model.hpp"
@@ -30,21 +32,26 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 [[noreturn]] void fail(const std::string& msg) { throw std::invalid_argument("URDF: " + msg); }
 
-std::vector<double> parse_numbers(const char* text, size_t n, const std::string& what) {
+// `n` numbers from `text`; errors name `what` (and attribute `attr`, if given),
+// a message built only on failure
+std::vector<double> parse_numbers(const char* text, size_t n, const std::string& what, const char* attr = nullptr) {
+  auto where = [&] { return attr ? what + " attribute '" + attr + "'" : what; };
   std::vector<double> out;
-  if (text) {
-    std::istringstream is(text);
-    std::string tok;
-    while (is >> tok) {
-      char* end = nullptr;
-      const double x = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0' || !std::isfinite(x))
-        fail(what + " has '" + tok + "', expected a finite number");
-      out.push_back(x);
-    }
+  out.reserve(n);
+  std::string tok;  // one whitespace-separated token (no stream: this runs for every attribute)
+  for (const char* p = text; p && *p;) {
+    const char* start = p + std::strspn(p, " \t\n\r\f\v");
+    if (!*start) break;
+    p = start + std::strcspn(start, " \t\n\r\f\v");
+    tok.assign(start, p);
+    char* end = nullptr;
+    const double x = std::strtod(tok.c_str(), &end);
+    if (end == tok.c_str() || *end != '\0' || !std::isfinite(x))
+      fail(where() + " has '" + tok + "', expected a finite number");
+    out.push_back(x);
   }
   if (out.size() != n)
-    fail(what + " must have " + std::to_string(n) + " numbers, got '" + (text ? text : "") + "'");
+    fail(where() + " must have " + std::to_string(n) + " numbers, got '" + (text ? text : "") + "'");
   return out;
 }
 
@@ -55,7 +62,7 @@ double parse_number(const tinyxml2::XMLElement* e, const char* attr, const std::
     if (required) fail(what + " is missing attribute '" + attr + "'");
     return dflt;
   }
-  return parse_numbers(t, 1, what + " attribute '" + std::string(attr) + "'")[0];
+  return parse_numbers(t, 1, what, attr)[0];
 }
 
 // X_parent_child from <origin xyz rpy> (fixed-axis roll, pitch, yaw)
@@ -233,8 +240,8 @@ void check_utf8(const std::string& s, const std::string& what) {
 struct Reader {
   std::vector<Link> links;
   std::vector<Joint> joints;
-  std::map<std::string, int> link_id, joint_id;
-  std::set<std::string> taken;  // every name in the file and every name generated so far
+  std::unordered_map<std::string, int> link_id, joint_id;
+  std::unordered_set<std::string> taken;  // every name in the file and every name generated so far
   ModelBuilder builder;
 
   // base, or base_1, base_2, ... : a generated name never equals a name of
@@ -411,6 +418,12 @@ Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict, b
       continue;
     }
     const Joint& t = R.joints[R.joint_id.at(j.mimic_joint)];
+    if (j.type == "fixed") {
+      // a fixed joint has no coordinate to couple (Pinocchio ignores it too)
+      R.builder.add_warning("joint '" + j.name + "' is fixed; its <mimic> of joint '" + j.mimic_joint +
+                            "' is ignored");
+      continue;
+    }
     if (!one_dof(j.type)) fail("joint '" + j.name + "' is a " + j.type + " joint; only 1-DoF joints can mimic");
     if (!one_dof(t.type))
       fail("joint '" + j.name + "' mimics '" + t.name + "', a " + t.type +

@@ -12,7 +12,9 @@ and the map between the two coordinate systems:
     coordinates are matched by joint name;
   * Pinocchio's continuous joints use (cos, sin) coordinates;
   * mimic joints are independent joints in the Pinocchio model, and
-    v_pin = G v, q_pin = map(q): reduced quantities are Gᵀ(·)G.
+    v_pin = G v, q_pin = map(q): reduced quantities are Gᵀ(·)G; with
+    pin_mimic=True Pinocchio's own mimic joints (no coordinates) are used
+    instead, and G is a permutation.
 """
 
 import os
@@ -87,8 +89,8 @@ def _rebuild(pm, replace):
 class Reference:
     """A Pinocchio model mirroring an rbdkit model."""
 
-    def __init__(self, path, floating_base=False):
-        self.model = rbdkit.Model.from_urdf(path, floating_base=floating_base)
+    def __init__(self, path, floating_base=False, mimic=True, pin_mimic=False):
+        self.model = rbdkit.Model.from_urdf(path, floating_base=floating_base, mimic=mimic)
         with open(path) as f:
             xml = f.read()
         xml = _expand_planar(xml)
@@ -97,8 +99,11 @@ class Reference:
             f.write(xml)
             tmp = f.name
         try:
-            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer()) if floating_base
-                  else pin.buildModelFromUrdf(tmp))
+            # the free-flyer under rbdkit's name for it (root_joint, or a
+            # unique variant when the file has a joint of that name)
+            kw = {"mimic": True} if pin_mimic else {}
+            pm = (pin.buildModelFromUrdf(tmp, pin.JointModelFreeFlyer(), self.model.joints[0]["name"], **kw)
+                  if floating_base else pin.buildModelFromUrdf(tmp, **kw))
         finally:
             os.unlink(tmp)
         self.pin = _rebuild(pm, replace) if replace else pm
@@ -115,6 +120,9 @@ class Reference:
             j = m.joint(name)
             self.body_of_joint[jid] = j["body"]
             pj = pm.joints[jid]
+            if pj.nv == 0:  # a Pinocchio mimic joint: no coordinates of its own
+                assert j["mimic_of"], f"{name} is a mimic joint in Pinocchio only"
+                continue
             self.entries.append((j, pj.idx_q, pj.idx_v, pj.nq, pj.nv))
             if j["mimic_of"]:
                 self.G[pj.idx_v, j["v_index"]] = j["multiplier"]
@@ -245,6 +253,37 @@ def close(actual, reference, rtol=1e-9):
 def assert_close(actual, reference, what, rtol=1e-9):
     ok, err, scale = close(actual, reference, rtol)
     assert ok, f"{what}: max error {err:.3e} > {rtol:g} x {scale:.3g}"
+
+
+def compare_dynamics(ref, what, singular=False, seed=0):
+    """RNEA, CRBA and ABA of the rbdkit model against the Pinocchio reference
+    at two random states (the second with high velocities); on a singular
+    mass matrix, ABA must raise in rbdkit and give NaN in Pinocchio"""
+    m = ref.model
+    assert sorted(ref.bodies) == list(range(m.nb)), f"{what}: Pinocchio's joints are not rbdkit's bodies"
+    assert np.linalg.matrix_rank(ref.G) == m.nv, f"{what}: coordinates unmatched"
+    rbd = rbdkit.RBD(m)
+    rng = np.random.default_rng(seed)
+    for k in range(2):
+        q = m.random_configuration(rng, scale=np.pi)
+        qd = rng.uniform(-1, 1, m.nv) * (3.0 if k == 0 else 30.0)
+        qdd = rng.uniform(-5, 5, m.nv)
+        tau = rng.uniform(-50, 50, m.nv)
+        assert_close(rbd.inverse_dynamics(q, qd, qdd)[0], ref.rnea(q, qd, qdd)[0], f"{what}: RNEA")
+        M_ref = ref.crba(q)
+        assert_close(rbd.crba(q), M_ref, f"{what}: CRBA")
+        if singular:
+            w = np.linalg.eigvalsh(M_ref)
+            assert w[0] <= 1e-12 * w[-1], f"{what}: M is not singular"
+            try:
+                rbd.aba(q, qd, tau)
+                raise AssertionError(f"{what}: ABA did not raise on a singular mass matrix")
+            except RuntimeError as e:
+                assert "not positive definite" in str(e), e
+            if not m.has_mimic:
+                assert not np.all(np.isfinite(ref.forward(q, qd, tau))), f"{what}: Pinocchio's ABA is finite"
+        else:
+            assert_close(rbd.aba(q, qd, tau), ref.forward(q, qd, tau), f"{what}: ABA")
 
 
 # the models every equivalence test runs on: (id, path, floating_base)
