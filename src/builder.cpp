@@ -64,7 +64,7 @@ Vec3<double> unit_axis(const Vec3<double>& a, const std::string& what) {
   if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z))
     fail(what + " has a non-finite axis (" + num(a.x) + ", " + num(a.y) + ", " + num(a.z) + ")");
   if (!(s > 0)) fail(what + " has a zero axis; a moving joint needs a direction");
-  const Vec3<double> b = (1.0 / s) * a;
+  const Vec3<double> b = {a.x / s, a.y / s, a.z / s};  // 1/s overflows for a subnormal s
   return (1.0 / std::sqrt(dot(b, b))) * b;
 }
 

@@ -300,7 +300,7 @@ struct Reader {
         // the plane is normal to the axis: translate along two in-plane axes, rotate about the axis
         const double s = std::max({std::fabs(j.axis.x), std::fabs(j.axis.y), std::fabs(j.axis.z)});
         if (!(s > 0)) fail("joint '" + j.name + "' is planar with a zero axis (the plane's normal)");
-        Vec3<double> n = (1.0 / s) * j.axis;
+        Vec3<double> n = {j.axis.x / s, j.axis.y / s, j.axis.z / s};  // 1/s overflows for a subnormal s
         n = (1.0 / std::sqrt(dot(n, n))) * n;
         Vec3<double> e1 = std::fabs(n.x) < 0.9 ? Vec3<double>{1, 0, 0} : Vec3<double>{0, 1, 0};
         e1 = e1 - dot(e1, n) * n;
