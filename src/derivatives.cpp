@@ -20,13 +20,6 @@ void check_inputs(const Model& m, long B, const double* q, const double* qd, con
   check_finite(&gravity, 1, "gravity");
 }
 
-[[noreturn]] void not_pd(const char* what, long s) {
-  std::ostringstream os;
-  os << what << ": the mass matrix is not positive definite at sample " << s
-     << " (a joint moves no mass, e.g. a chain of massless links)";
-  throw std::runtime_error(os.str());
-}
-
 void require_no_mimic(const Model& m, const char* what) {
   if (m.has_mimic())
     throw std::invalid_argument(std::string(what) +
@@ -84,7 +77,7 @@ void forward_dynamics_gradient(const Model& m, long B, const double* q, const do
     double* a = qdd ? qdd + s * nv : acc.data();
     if (!aba_derivatives(mv, buf.get(), q + s * m.nq, qd + s * nv, tau + s * nv, fext ? fext + s * m.nb() * 6 : nullptr,
                          gravity, a, dqdd_dq + s * nv * nv, dqdd_dqd + s * nv * nv))
-      not_pd("forward_dynamics_gradient", s);
+      throw_not_positive_definite(m, "forward_dynamics_gradient", q + s * m.nq, B > 1 ? s : -1);
   }
 }
 
@@ -95,7 +88,7 @@ void fext_gradient(const Model& m, long B, const double* q, double* dtau_dfext, 
   const long blk = static_cast<long>(m.nb()) * m.nv * 6;
   for (long s = 0; s < B; ++s)
     if (!fext_derivatives(mv, buf.get(), q + s * m.nq, dtau_dfext + s * blk, dqdd_dfext + s * blk))
-      not_pd("f_ext_gradient", s);
+      throw_not_positive_definite(m, "f_ext_gradient", q + s * m.nq, B > 1 ? s : -1);
 }
 
 void inverse_dynamics_fpass(const Model& m, long B, const double* q, const double* qd, const double* qdd,
@@ -139,7 +132,8 @@ void minv_bpass(const Model& m, long B, const double* q, double* minv_b) {
   WorkspaceBuffer buf(m);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
-    if (!minv_backward_pass(mv, buf.get(), q + s * m.nq, minv_b + s * m.nv * m.nv)) not_pd("minv_bpass", s);
+    if (!minv_backward_pass(mv, buf.get(), q + s * m.nq, minv_b + s * m.nv * m.nv))
+      throw_not_positive_definite(m, "minv_bpass", q + s * m.nq, B > 1 ? s : -1);
 }
 
 void minv_fpass(const Model& m, long B, const double* q, const double* minv_b, double* minv_out) {
@@ -152,7 +146,8 @@ void minv_fpass(const Model& m, long B, const double* q, const double* minv_b, d
   const int nv = m.nv;
   for (long s = 0; s < B; ++s) {
     // the backward pass's articulated quantities (U, D⁻¹, S), then the forward pass on the given rows
-    if (!minv_backward_pass(mv, w, q + s * m.nq, w.dense)) not_pd("minv_fpass", s);
+    if (!minv_backward_pass(mv, w, q + s * m.nq, w.dense))
+      throw_not_positive_definite(m, "minv_fpass", q + s * m.nq, B > 1 ? s : -1);
     double* out = minv_out + s * nv * nv;
     for (int k = 0; k < nv * nv; ++k) out[k] = minv_b[s * nv * nv + k];
     minv_forward_pass(mv, w, out);

@@ -20,13 +20,6 @@ std::string sample_label(const char* arg, long sample) {
   return os.str();
 }
 
-[[noreturn]] void not_pd(const char* what, long sample) {
-  std::ostringstream os;
-  os << what << ": the mass matrix is not positive definite at sample " << sample
-     << " (a joint moves no mass, e.g. a chain of massless links)";
-  throw std::runtime_error(os.str());
-}
-
 }  // namespace
 
 void check_finite(const double* x, long n, const char* arg) {
@@ -35,12 +28,48 @@ void check_finite(const double* x, long n, const char* arg) {
       std::ostringstream os;
       os << arg << ": expected finite values, got " << x[k] << " at flat index " << k;
       throw std::invalid_argument(os.str());
+    } else if (std::fabs(x[k]) > kMaxInput) {
+      std::ostringstream os;
+      os << arg << ": expected values of magnitude at most " << kMaxInput << " (larger ones overflow), got " << x[k]
+         << " at flat index " << k;
+      throw std::invalid_argument(os.str());
     }
+}
+
+void check_time_step(double dt, const char* arg) {
+  if (!(dt > 0 && dt <= kMaxTimeStep)) {
+    std::ostringstream os;
+    os << arg << ": expected a positive finite time step of at most " << kMaxTimeStep << " s, got " << dt;
+    throw std::invalid_argument(os.str());
+  }
+}
+
+void check_result(const double* x, long n, const char* what, const char* out) {
+  for (long k = 0; k < n; ++k)
+    if (!std::isfinite(x[k])) {
+      std::ostringstream os;
+      os << what << ": the result " << out << " is not finite (" << x[k] << " at flat index " << k
+         << "): the computation overflowed; reduce the inputs' magnitudes (or dt)";
+      throw std::runtime_error(os.str());
+    }
+}
+
+void check_joint_angles(const Model& m, const double* q, const char* label) {
+  for (size_t i = 0; i < m.bodies.size(); ++i) {
+    const BodyDesc<double>& b = m.bodies[i];
+    if (!b.mimic && (b.type == kRevolute || b.type == kHelical) && std::fabs(q[b.q_idx]) > kMaxAngle) {
+      std::ostringstream os;
+      os << label << ": the angle of joint '" << m.joints[i].name << "' (q[" << b.q_idx << "]) must have magnitude "
+         << "at most " << kMaxAngle << " rad (beyond it sin and cos have no precision left), got " << q[b.q_idx];
+      throw std::invalid_argument(os.str());
+    }
+  }
 }
 
 void check_configuration(const Model& m, const double* q, const char* arg, long sample) {
   const std::string label = sample_label(arg, sample);
   check_finite(q, m.nq, label.c_str());
+  check_joint_angles(m, q, label.c_str());
   for (size_t i = 0; i < m.bodies.size(); ++i) {
     const BodyDesc<double>& b = m.bodies[i];
     if (b.mimic || (b.type != kFree && b.type != kSpherical)) continue;
@@ -57,6 +86,27 @@ void check_configuration(const Model& m, const double* q, const char* arg, long 
 
 void check_configurations(const Model& m, long B, const double* q, const char* arg) {
   for (long s = 0; s < B; ++s) check_configuration(m, q + s * m.nq, arg, B > 1 ? s : -1);
+}
+
+int singular_joint(const Model& m, const double* q) {
+  WorkspaceBuffer buf(m);  // the error path only
+  return aba_singular_body(m.view(), buf.get(), q);
+}
+
+void throw_not_positive_definite(const Model& m, const char* what, const double* q, long sample) {
+  const int i = singular_joint(m, q);
+  std::ostringstream os;
+  os << what << ": ";
+  if (i >= 0) {
+    os << "joint '" << m.joints[i].name << "' moves no mass";
+    if (sample >= 0) os << " at sample " << sample;
+    os << ": the mass matrix is singular (not positive definite); give the bodies it moves a mass and "
+          "inertia, or make the joint fixed";
+  } else {
+    os << "the mass matrix is not positive definite";
+    if (sample >= 0) os << " at sample " << sample;
+  }
+  throw std::runtime_error(os.str());
 }
 
 namespace batch {
@@ -93,6 +143,7 @@ void inverse_dynamics(const Model& m, long B, const double* q, const double* qd,
       for (int i = 0; i < nb; ++i) store(w.c[i], a + (s * nb + i) * 6);
     }
   }
+  check_result(tau, B * m.nv, "inverse_dynamics", "tau");
 }
 
 void crba(const Model& m, long B, const double* q, double* M, Workspace<double>* ws) {
@@ -100,6 +151,7 @@ void crba(const Model& m, long B, const double* q, double* M, Workspace<double>*
   ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s) rbd::crba(mv, buf.get(), q + s * m.nq, M + s * m.nv * m.nv);
+  check_result(M, B * m.nv * m.nv, "crba", "M");
 }
 
 void minv(const Model& m, long B, const double* q, bool dense, double* Minv, Workspace<double>* ws) {
@@ -107,7 +159,9 @@ void minv(const Model& m, long B, const double* q, bool dense, double* Minv, Wor
   ScopedWorkspace buf(m, ws);
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
-    if (!rbd::minv(mv, buf.get(), q + s * m.nq, dense, Minv + s * m.nv * m.nv)) not_pd("minv", s);
+    if (!rbd::minv(mv, buf.get(), q + s * m.nq, dense, Minv + s * m.nv * m.nv))
+      throw_not_positive_definite(m, "minv", q + s * m.nq, B > 1 ? s : -1);
+  check_result(Minv, B * m.nv * m.nv, "minv", "Minv");
 }
 
 void aba(const Model& m, long B, const double* q, const double* qd, const double* tau, const double* fext,
@@ -121,7 +175,8 @@ void aba(const Model& m, long B, const double* q, const double* qd, const double
   for (long s = 0; s < B; ++s)
     if (!rbd::aba(mv, buf.get(), q + s * m.nq, qd + s * m.nv, tau + s * m.nv, fext ? fext + s * m.nb() * 6 : nullptr,
                   gravity, qdd + s * m.nv))
-      not_pd("aba", s);
+      throw_not_positive_definite(m, "aba", q + s * m.nq, B > 1 ? s : -1);
+  check_result(qdd, B * m.nv, "aba", "qdd");
 }
 
 void forward_dynamics(const Model& m, long B, const double* q, const double* qd, const double* tau,
@@ -135,7 +190,8 @@ void forward_dynamics(const Model& m, long B, const double* q, const double* qd,
   for (long s = 0; s < B; ++s)
     if (!rbd::forward_dynamics(mv, buf.get(), q + s * m.nq, qd + s * m.nv, tau + s * m.nv,
                                fext ? fext + s * m.nb() * 6 : nullptr, gravity, qdd + s * m.nv))
-      not_pd("forward_dynamics", s);
+      throw_not_positive_definite(m, "forward_dynamics", q + s * m.nq, B > 1 ? s : -1);
+  check_result(qdd, B * m.nv, "forward_dynamics", "qdd");
 }
 
 void integrate(const Model& m, long B, const double* q, const double* v, double* out) {

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
@@ -19,6 +20,7 @@
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/integrators.hpp"
+#include "rbdkit/dynamics.hpp"
 #include "rbdkit/simd.hpp"
 
 #ifndef RBDKIT_ENGINE_W64
@@ -255,10 +257,28 @@ template <typename T> struct EngineT : Engine::Impl {
     pool.run(job.active, &Job<K>::call, &job);
     const long f = job.failed.load();
     if (f >= 0) {
+      // name the joint: the first sample of the failed pack (q: the first input) where one is singular
+      std::vector<double> qs(model.nq);
+      for (long s = f; s < std::min(B, f + W); ++s) {
+        for (int k = 0; k < model.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s * model.nq + k]);
+        if (singular_joint(model, qs.data()) >= 0) throw_not_positive_definite(model, what, qs.data(), s);
+      }
       std::ostringstream os;
-      os << what << ": the mass matrix (or a joint's articulated inertia) is not positive definite in samples " << f
-         << ".." << std::min(B, f + W) - 1;
+      os << what << ": the mass matrix (or a joint's articulated inertia) is not positive definite, or a stage "
+         << "of an integrator step overflowed, in samples " << f << ".." << std::min(B, f + W) - 1;
       throw std::runtime_error(os.str());
+    }
+    // results that overflowed despite the inputs' bounds (one pass over the outputs)
+    for (int o = 0; o < job.nout; ++o) {
+      const Out<T>& a = job.out[o];
+      if (!a.p) continue;
+      for (long k = 0; k < B * a.w; ++k)
+        if (!std::isfinite(a.p[k])) {
+          std::ostringstream os;
+          os << what << ": output " << o << " is not finite at sample " << k / a.w
+             << ": the computation overflowed; reduce the inputs' magnitudes (or dt)";
+          throw std::runtime_error(os.str());
+        }
     }
   }
 };
@@ -283,9 +303,9 @@ void check_type(const char* what, int type) {
   }
 }
 template <typename T> void check_dt(const char* what, T dt) {
-  if (!(dt > 0) || !(dt < T(1e30))) {
+  if (!(dt > 0) || !(dt <= T(kMaxTimeStep))) {
     std::ostringstream os;
-    os << what << ": dt: expected a positive finite time step, got " << dt;
+    os << what << ": dt: expected a positive finite time step of at most " << kMaxTimeStep << " s, got " << dt;
     throw std::invalid_argument(os.str());
   }
 }

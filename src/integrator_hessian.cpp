@@ -19,11 +19,7 @@ void plant_step_hessian(const Model& m, long B, const double* q, const double* v
   check_finite(v, B * m.nv, "qd");
   check_finite(u, B * m.nv, "u");
   check_finite(&gravity, 1, "gravity");
-  if (!std::isfinite(dt) || dt <= 0) {
-    std::ostringstream os;
-    os << "dt: expected a positive finite time step, got " << dt;
-    throw std::invalid_argument(os.str());
-  }
+  check_time_step(dt);
   if (type < kEuler || type > kConstantAcceleration) throw std::invalid_argument("integrator_type: out of range");
   WorkspaceBuffer buf(m);
   const ModelView<double> mv = m.view();
@@ -33,11 +29,8 @@ void plant_step_hessian(const Model& m, long B, const double* q, const double* v
   for (long s = 0; s < B; ++s) {
     double* x = x_next + s * (nq + nv);
     if (!integrator_hessian(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv, dt, gravity, x, x + nq,
-                            AB + s * n_ab, H + s * n_h, scratch.data(), convention)) {
-      std::ostringstream os;
-      os << "plant_step_hessian: the mass matrix is not positive definite at sample " << s;
-      throw std::runtime_error(os.str());
-    }
+                            AB + s * n_ab, H + s * n_h, scratch.data(), convention))
+      throw_not_positive_definite(m, "plant_step_hessian", q + s * nq, B > 1 ? s : -1);
   }
 }
 

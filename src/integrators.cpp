@@ -30,16 +30,17 @@ void check_step(const Model& m, long B, const double* q, const double* v, const 
   check_finite(u, B * m.nv, "u");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  if (!std::isfinite(dt) || dt <= 0) {
-    std::ostringstream os;
-    os << "dt: expected a positive finite time step, got " << dt;
-    throw std::invalid_argument(os.str());
-  }
+  check_time_step(dt);
   if (type < kEuler || type > kConstantAcceleration) throw std::invalid_argument("integrator_type: out of range");
 }
-[[noreturn]] void not_pd(const char* what, long s) {
+// a failed step: a joint that moves no mass, or (none at q) a later stage
+// whose state overflowed, which makes its mass matrix non-finite
+[[noreturn]] void step_failed(const Model& m, const char* what, const double* q, long s) {
+  if (singular_joint(m, q) >= 0) throw_not_positive_definite(m, what, q, s);
   std::ostringstream os;
-  os << what << ": the mass matrix is not positive definite at sample " << s;
+  os << what << ": a stage of the step overflowed (non-finite state or mass matrix)";
+  if (s >= 0) os << " at sample " << s;
+  os << "; reduce dt or the magnitudes of qd and u";
   throw std::runtime_error(os.str());
 }
 }  // namespace
@@ -56,8 +57,9 @@ void integrator(const Model& m, long B, const double* q, const double* v, const 
     if (!integrator_step(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
                          fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq, scratch.data(),
                          convention))
-      not_pd("integrator", s);
+      step_failed(m, "integrator", q + s * nq, B > 1 ? s : -1);
   }
+  check_result(x_next, B * (nq + nv), "integrator", "x_next");
 }
 
 void integrator_gradient(const Model& m, long B, const double* q, const double* v, const double* u,
@@ -73,8 +75,10 @@ void integrator_gradient(const Model& m, long B, const double* q, const double* 
     if (!rbd::integrator_gradient(mv, buf.get(), type, q + s * nq, v + s * nv, u + s * nv,
                                   fext ? fext + s * m.nb() * 6 : nullptr, dt, gravity, x, x + nq,
                                   AB + s * 6L * nv * nv, scratch.data(), convention))
-      not_pd("integrator_gradient", s);
+      step_failed(m, "integrator_gradient", q + s * nq, B > 1 ? s : -1);
   }
+  check_result(x_next, B * (nq + nv), "integrator_gradient", "x_next");
+  check_result(AB, B * 6L * nv * nv, "integrator_gradient", "AB");
 }
 
 }  // namespace batch

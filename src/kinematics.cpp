@@ -254,12 +254,8 @@ void osc_inertia(const Model& m, long B, const double* q, const EndEffectors& ee
   const ModelView<double> mv = m.view();
   const long n = ee.size();
   for (long s = 0; s < B; ++s) {
-    if (!osc_factor_mass_matrix(mv, w, q + s * m.nq)) {
-      std::ostringstream os;
-      os << "osc_inertia: the mass matrix is not positive definite at sample " << s
-         << " (a joint moves no mass, e.g. a chain of massless links)";
-      throw std::runtime_error(os.str());
-    }
+    if (!osc_factor_mass_matrix(mv, w, q + s * m.nq))
+      throw_not_positive_definite(m, "osc_inertia", q + s * m.nq, B > 1 ? s : -1);
     for (long e = 0; e < n; ++e)
       if (!rbd::osc_inertia(mv, w, ee.bodies[e], tool_point<double>(ee, s, e), Lambda + (s * n + e) * 36)) {
         const int b = ee.bodies[e];

@@ -29,6 +29,7 @@ void check_configuration_in(const Model& m, const double* q, const char* arg, lo
   label << arg;
   if (sample >= 0) label << "[" << sample << "]";
   check_finite(q, m.nq, label.str().c_str());
+  check_joint_angles(m, q, label.str().c_str());
   for (size_t i = 0; i < m.bodies.size(); ++i) {
     const int o = quat_offset(m.bodies[i]);
     if (o < 0) continue;

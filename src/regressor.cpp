@@ -52,12 +52,8 @@ void forward_dynamics_parameter_gradient(const Model& m, long B, const double* q
   for (long s = 0; s < B; ++s) {
     double* a = qdd ? qdd + s * m.nv : acc.data();
     if (!rbd::forward_dynamics_parameter_gradient(mv, buf.get(), q + s * m.nq, qd + s * m.nv, u + s * m.nv, gravity,
-                                                  a, dqdd_dpi + s * blk)) {
-      std::ostringstream os;
-      os << "forward_dynamics_parameter_gradient: the mass matrix is not positive definite at sample " << s
-         << " (a joint moves no mass, e.g. a chain of massless links)";
-      throw std::runtime_error(os.str());
-    }
+                                                  a, dqdd_dpi + s * blk))
+      throw_not_positive_definite(m, "forward_dynamics_parameter_gradient", q + s * m.nq, B > 1 ? s : -1);
   }
 }
 

@@ -48,12 +48,8 @@ void fdsva_so(const Model& m, long B, const double* q, const double* qd, const d
   const long nv = m.nv, blk = nv * nv * nv;
   for (long s = 0; s < B; ++s)
     if (!rbd::fdsva_so(mv, buf.get(), q + s * m.nq, qd + s * nv, u + s * nv, gravity, d2qdd_dq2 + s * blk,
-                       d2qdd_dqd2 + s * blk, d2qdd_dqdqd + s * blk, d2qdd_dqdu + s * blk)) {
-      std::ostringstream os;
-      os << "fdsva_so: the mass matrix is not positive definite at sample " << s
-         << " (a joint moves no mass, e.g. a chain of massless links)";
-      throw std::runtime_error(os.str());
-    }
+                       d2qdd_dqd2 + s * blk, d2qdd_dqdqd + s * blk, d2qdd_dqdu + s * blk))
+      throw_not_positive_definite(m, "fdsva_so", q + s * m.nq, B > 1 ? s : -1);
 }
 
 }  // namespace batch

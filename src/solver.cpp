@@ -88,11 +88,7 @@ Setup make_setup(const Model& m, Handle& h, const TrajectoryProblem& p) {
   if (p.horizon < 1)
     throw std::invalid_argument("horizon: expected a positive number of knot points, got " +
                                 std::to_string(p.horizon));
-  if (!(std::isfinite(p.dt) && p.dt > 0)) {
-    std::ostringstream os;
-    os << "dt: expected a positive finite time step, got " << p.dt;
-    throw std::invalid_argument(os.str());
-  }
+  check_time_step(p.dt);
   integrator_from_name(p.integrator);
   s.N = p.horizon;
   s.nq = m.nq, s.nv = m.nv, s.nx = m.nq + m.nv, s.ndx = 2 * m.nv;
@@ -401,10 +397,14 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
       }
       try {
         steps.step(1, Xo.row(k).data(), Uo.row(k).data(), Xo.row(k + 1).data());
+        // a state beyond the input bounds (dynamics.hpp) has diverged as surely as a non-finite one
+        check_configuration(model, Xo.row(k + 1).data(), "x");
+        check_finite(Xo.row(k + 1).data() + model.nq, nv, "x");
       } catch (const std::runtime_error&) {
         return false;  // a diverging trial (e.g. a mass matrix lost to round-off): rejected
+      } catch (const std::invalid_argument&) {
+        return false;
       }
-      if (!Xo.row(k + 1).allFinite()) return false;
     }
     return true;
   };
@@ -414,7 +414,7 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
   {
     RowMat Uo(N, nv);
     const bool ok = rollout(closed_loop ? X_init : RowMat(), U, 0.0, closed_loop && !K_init.empty(), X, Uo);
-    if (!ok) throw std::invalid_argument("U_init: the initial rollout diverges (non-finite states)");
+    if (!ok) throw std::invalid_argument("U_init: the initial rollout diverges (non-finite or out-of-bounds states)");
     U = Uo;
   }
   for (auto& Kk : K) Kk.setZero();

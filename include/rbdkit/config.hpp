@@ -43,9 +43,16 @@ RBD_HD bool any_lane(bool c) { return c; }
 RBD_HD bool all_lanes(bool c) { return c; }
 template <typename S> RBD_HD S select(bool c, const S& a, const S& b) { return c ? a : b; }
 
-// small-angle threshold below which series expansions replace the closed forms
+// small: the small-angle threshold below which series expansions replace the
+// closed forms; machine: the unit roundoff's scale (DBL_EPSILON / FLT_EPSILON)
 template <typename S> struct Eps;
-template <> struct Eps<double> { static constexpr double small = 1e-4; };
-template <> struct Eps<float> { static constexpr float small = 1e-2f; };
+template <> struct Eps<double> {
+  static constexpr double small = 1e-4;
+  static constexpr double machine = 2.220446049250313e-16;
+};
+template <> struct Eps<float> {
+  static constexpr float small = 1e-2f;
+  static constexpr float machine = 1.1920929e-7f;
+};
 
 }  // namespace rbd

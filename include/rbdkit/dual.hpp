@@ -46,6 +46,9 @@ template <typename S> RBD_HD Dual<S> satan2(const Dual<S>& y, const Dual<S>& x) 
 }
 template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return value_of(a) < 0 ? -a : a; }
 
-template <typename S> struct Eps<Dual<S>> { static constexpr typename DualBase<S>::type small = Eps<S>::small; };
+template <typename S> struct Eps<Dual<S>> {
+  static constexpr typename DualBase<S>::type small = Eps<S>::small;
+  static constexpr typename DualBase<S>::type machine = Eps<S>::machine;
+};
 
 }  // namespace rbd

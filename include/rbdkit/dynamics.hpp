@@ -59,12 +59,39 @@ class ScopedWorkspace {
 };
 
 // ---- input checks (throw std::invalid_argument)
+// Bounds on inputs: beyond kMaxInput the algorithms' products overflow (a
+// velocity enters squared, times inertias up to 1e15 and lengths up to 1e12,
+// ModelBuilder's limits), beyond kMaxAngle an angle has no precision left in
+// sin and cos (its float64 spacing exceeds 1e-4 rad). Results that still
+// come out non-finite throw std::runtime_error (check_result).
+constexpr double kMaxInput = 1e100;    // |q| (positions), |qd|, |qdd|, |tau|, |u|, |f_ext|, |gravity|, ...
+constexpr double kMaxAngle = 1e12;     // |q| of revolute and helical joints (rad)
+constexpr double kMaxTimeStep = 1e6;   // dt (s) of the integrators and the solver
+// finite values of magnitude at most kMaxInput
 void check_finite(const double* x, long n, const char* arg);
-// finite values and a unit quaternion (|‖quat‖ - 1| <= 1e-6) for every
-// free-flyer and spherical joint; `sample` only labels the message (-1: none)
+// finite values (kMaxInput, kMaxAngle for the angles of revolute and helical
+// joints) and a unit quaternion (|‖quat‖ - 1| <= 1e-6) for every free-flyer
+// and spherical joint; `sample` only labels the message (-1: none)
 void check_configuration(const Model& m, const double* q, const char* arg, long sample = -1);
+// |angle| <= kMaxAngle for the revolute and helical joints of q (nq)
+void check_joint_angles(const Model& m, const double* q, const char* label);
+// 0 < dt <= kMaxTimeStep
+void check_time_step(double dt, const char* arg = "dt");
+// the outputs of an operation (n values) are finite: std::runtime_error naming
+// `what` and `out` otherwise (an overflow that the input bounds let through)
+void check_result(const double* x, long n, const char* what, const char* out);
 // the same for B stacked configurations (B x nq)
 void check_configurations(const Model& m, long B, const double* q, const char* arg);
+
+// ---- a mass matrix that is not positive definite: std::runtime_error
+// "<what>: joint '<name>' moves no mass at sample <s>: the mass matrix is
+// singular (...)", naming the joint whose articulated inertia is singular at
+// q (nq, the sample's configuration; aba_singular_body), or the general
+// message when none is (e.g. a singularity through mimic couplings).
+// sample -1: one sample, not labelled.
+[[noreturn]] void throw_not_positive_definite(const Model& m, const char* what, const double* q, long sample);
+// the index of the joint (= body) whose articulated inertia is singular at q, or -1
+int singular_joint(const Model& m, const double* q);
 
 // The dynamics functions take an optional workspace (made with
 // WorkspaceBuffer for the same model); without one they allocate their own

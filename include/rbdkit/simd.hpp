@@ -169,6 +169,9 @@ template <typename T, int W> inline Pack<T, W> select(const PackMask<T, W>& c, c
   return Pack<T, W>::from(c.m ? a.v : b.v);
 }
 
-template <typename T, int W> struct Eps<Pack<T, W>> { static constexpr T small = Eps<T>::small; };
+template <typename T, int W> struct Eps<Pack<T, W>> {
+  static constexpr T small = Eps<T>::small;
+  static constexpr T machine = Eps<T>::machine;
+};
 
 }  // namespace rbd

@@ -3,6 +3,21 @@ before any work, and errors name the argument and the expected form."""
 
 import numpy as np
 
+from . import _core
+
+# Input bounds (C++: rbd::kMaxInput, kMaxAngle, kMaxTimeStep in
+# include/rbdkit/dynamics.hpp): beyond MAX_INPUT the dynamics overflow
+# float64, beyond MAX_ANGLE (rad, revolute and helical joints) sin and cos
+# keep no precision; dt is at most MAX_TIME_STEP (s). The float32 engine
+# paths of rbdkit.Handle take MAX_INPUT_F32 and MAX_ANGLE_F32 (float32's
+# range and spacing).
+MAX_INPUT = float(_core.MAX_INPUT)
+MAX_ANGLE = float(_core.MAX_ANGLE)
+MAX_TIME_STEP = float(_core.MAX_TIME_STEP)
+MAX_INPUT_F32 = 1e15
+MAX_ANGLE_F32 = 1e4
+ANGLE_JOINTS = ("revolute", "continuous", "helical")
+
 
 def as_real_array(x, name):
     """x as a float64 ndarray; TypeError for non-numeric input."""
@@ -70,12 +85,30 @@ class Batch:
         return a if self.batched else a[0]
 
 
-def check_scalar(x, name):
+def check_values(a, name, batched=False):
+    """finite values of magnitude at most MAX_INPUT (the C++ check_finite);
+    batched: a (B, ...) array whose failing sample is named as name[s]"""
+    a = np.asarray(a)
+    bad = ~np.isfinite(a) | (np.abs(a) > MAX_INPUT)
+    if not bad.any():
+        return a
+    s = int(np.argmax(bad.reshape(len(a), -1).any(axis=1))) if batched else None
+    label = f"{name}[{s}]" if batched else name
+    v = a[bad][0]
+    if not np.isfinite(v):
+        raise ValueError(f"{label}: expected finite values, got {v:g}")
+    raise ValueError(f"{label}: expected values of magnitude at most {MAX_INPUT:g} (larger ones overflow), got {v:g}")
+
+
+def check_scalar(x, name, bound=None):
+    """a real number, finite; |x| <= bound when given"""
     if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name}: expected a real number, got {type(x).__name__}")
     x = float(x)
     if not np.isfinite(x):
         raise ValueError(f"{name}: expected a finite number, got {x}")
+    if bound is not None and abs(x) > bound:
+        raise ValueError(f"{name}: expected a magnitude of at most {bound:g} (larger ones overflow), got {x:g}")
     return x
 
 

@@ -118,13 +118,11 @@ class CostsMixin:
         return b.ret(v), b.ret(g), b.ret(H)
 
     def _ee_point(self, offset):
-        from ._checks import as_real_array
+        from ._checks import as_real_array, check_values
         a = as_real_array(offset, "ee_offset")
         if a.shape != (3,):
             raise ValueError(f"ee_offset: expected shape (3,), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError("ee_offset: expected finite values")
-        return a
+        return check_values(a, "ee_offset")
 
     def _barrier(self, x, lower, upper, mu, n, dim, name):
         mu = check_scalar(mu, "mu")

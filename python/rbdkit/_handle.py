@@ -35,7 +35,8 @@ import os
 import numpy as np
 
 from . import _core
-from ._checks import Batch, check_scalar
+from ._checks import (ANGLE_JOINTS, MAX_ANGLE, MAX_ANGLE_F32, MAX_INPUT, MAX_INPUT_F32, Batch,
+                      check_scalar)
 from ._integrators import check_dt, integrator_code
 from ._model import Model
 from ._rbd import RBD
@@ -180,6 +181,11 @@ class Handle:
         self._convention_noop = not any(j["type"] in ("free", "spherical") for j in model.joints)
         self._quats = [(j["name"], j["q_index"] + (3 if j["type"] == "free" else 0))
                        for j in model.joints if j["type"] in ("free", "spherical") and not j["mimic_of"]]
+        self._angles = [(j["name"], j["q_index"]) for j in model.joints
+                        if j["type"] in ANGLE_JOINTS and not j["mimic_of"]]
+        # the input bounds of the engine path in this dtype (_checks.py)
+        f32 = self.dtype == np.float32
+        self._max_input, self._max_angle = (MAX_INPUT_F32, MAX_ANGLE_F32) if f32 else (MAX_INPUT, MAX_ANGLE)
         self._engine = _core.Engine(model._core, self.threads, self.dtype.name) if self.engine_available() else None
 
     # ---- what the handle has
@@ -238,9 +244,12 @@ class Handle:
 
     def _engine_call(self, op, method, args, kwargs):
         """the op on the batch engine, or None when this call does not fit it"""
+        if self.nv == 0:  # no joints: the RBD method's empty results
+            return None
         route = ENGINE_ROUTES[op]
         name, inputs, scalars, outputs, result = route[:5]
-        a = inspect.signature(method).bind(*args, **kwargs)
+        sig = inspect.signature(method)
+        a = sig.bind(*args, **kwargs)
         a.apply_defaults()
         a = a.arguments
         f = a.get("f_ext")
@@ -258,12 +267,14 @@ class Handle:
             elif s == "dt":
                 sc.append(check_dt(a[s]))
             else:
-                sc.append(check_scalar(a[s], s))
+                sc.append(check_scalar(a[s], s, self._max_input))
         dims = {"nq": self.nq, "nv": self.nv, "nx": self.nq + self.nv, "2nv": 2 * self.nv, "3nv": 3 * self.nv}
         b = Batch()
         idx = []
         for arg, w in inputs:
-            if arg == "0" or a[arg] is None:
+            # None stands for zeros only where the RBD method's default is None (qdd);
+            # a required array given as None is checked (and refused) like any other
+            if arg == "0" or (a[arg] is None and sig.parameters[arg].default is None):
                 idx.append(None)
             elif arg == "q":
                 idx.append(self.rbd._q(b, a[arg]))
@@ -299,15 +310,28 @@ class Handle:
         return np.require(x, dtype=self.dtype, requirements=["C", "W"])
 
     def _check_values(self, name, x, config=False):
-        """finite values and unit quaternions, with the messages of the C++ checks"""
-        bad = ~np.isfinite(x)
+        """finite values within the dtype's bounds, joint angles within theirs
+        and unit quaternions, with the messages of the C++ checks"""
+        bad = ~np.isfinite(x) | (np.abs(x) > self._max_input)
         if bad.any():
             s, k = np.argwhere(bad)[0]
             label = f"{name}[{s}]" if config and len(x) > 1 else name
             flat = k if config else s * x.shape[1] + k
-            raise ValueError(f"{label}: expected finite values, got {x[s, k]:g} at flat index {flat}")
+            if not np.isfinite(x[s, k]):
+                raise ValueError(f"{label}: expected finite values, got {x[s, k]:g} at flat index {flat}")
+            raise ValueError(f"{label}: expected values of magnitude at most {self._max_input:g} (larger ones "
+                             f"overflow{' in ' + self.dtype.name if self.dtype == np.float32 else ''}), got "
+                             f"{x[s, k]:g} at flat index {flat}")
         if not config:
             return
+        for jname, o in self._angles:
+            off = np.abs(x[:, o]) > self._max_angle
+            if off.any():
+                s = int(np.argmax(off))
+                label = f"{name}[{s}]" if len(x) > 1 else name
+                raise ValueError(f"{label}: the angle of joint '{jname}' (q[{o}]) must have magnitude at most "
+                                 f"{self._max_angle:g} rad (beyond it sin and cos have no precision left), got "
+                                 f"{x[s, o]:g}")
         for jname, o in self._quats:
             n = np.linalg.norm(x[:, o:o + 4], axis=1)
             off = np.abs(n - 1.0) > 1e-6

@@ -11,7 +11,7 @@ frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see _muj
 import numpy as np
 
 from . import _core
-from ._checks import Batch, check_scalar
+from ._checks import MAX_TIME_STEP, Batch, check_scalar, check_values
 from ._mujoco import convention_code
 
 GRAVITY = -9.81
@@ -25,9 +25,10 @@ def integrator_code(name):
 
 
 def check_dt(dt):
+    """0 < dt <= MAX_TIME_STEP (s; a larger step overflows the state)"""
     dt = check_scalar(dt, "dt")
-    if dt <= 0:
-        raise ValueError(f"dt: expected a positive time step, got {dt}")
+    if not 0 < dt <= MAX_TIME_STEP:
+        raise ValueError(f"dt: expected a positive time step of at most {MAX_TIME_STEP:g} s, got {dt:g}")
     return dt
 
 
@@ -107,11 +108,7 @@ class IntegratorsMixin:
         nq, nv = self.nq, self.nv
         b = Batch()
         ix, iu = b.add(x, "x", (nq + nv,), ("nq+nv",)), self._v(b, u, "u")
-        X = b.get(ix)
-        bad = ~np.isfinite(X).all(axis=1)
-        if bad.any():
-            s = int(np.argmax(bad))
-            raise ValueError(f"x{f'[{s}]' if b.batched else ''}: expected finite values")
+        X = check_values(b.get(ix), "x", batched=b.batched)
         xn, AB, H = b.out(nq + nv), b.out(2 * nv, 3 * nv), b.out(2 * nv, 3 * nv, 3 * nv)
         _core.plant_step_hessian(self._m, np.ascontiguousarray(X[:, :nq]), np.ascontiguousarray(X[:, nq:]), b.get(iu),
                                  dt, g, t, xn, AB, H, cv)

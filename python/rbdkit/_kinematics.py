@@ -59,6 +59,8 @@ class KinematicsMixin:
     def _ee_bodies(self, ee_joint_names, name="ee_joint_names"):
         """body indices of the end effectors: the leaf bodies by default"""
         if ee_joint_names is None:
+            if self.nb == 0:
+                raise ValueError(f"{name}: the model has no joints (nq = 0), so it has no end effector")
             return list(_core.leaf_bodies(self._m))
         if isinstance(ee_joint_names, str):
             ee_joint_names = [ee_joint_names]

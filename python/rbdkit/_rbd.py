@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _core
 from ._centroidal import CentroidalMixin
-from ._checks import Batch, check_choice, check_scalar
+from ._checks import Batch, check_choice, check_scalar, check_values
 from ._costs import CostsMixin
 from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
@@ -109,8 +109,7 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
         i2 = b.add(f_ext, "f_ext", (self.nb, 6), ("nb", "6"))
         f1, f2 = b.get(i1), b.get(i2)
         for name, f in (("f_in", f1), ("f_ext", f2)):
-            if not np.all(np.isfinite(f)):
-                raise ValueError(f"{name}: expected finite values")
+            check_values(f, name)
         return b.ret(f1 - f2)
 
     def generalized_gravity(self, q, gravity=GRAVITY):
@@ -190,8 +189,7 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
             raise ValueError("time_per_call: expected one sample, not a batch")
         self.integrate(q, np.zeros(self.nv))  # checks q (finite, unit quaternions)
         for name, i in (("qd", iv), ("tau", it)):
-            if not np.all(np.isfinite(b.get(i))):
-                raise ValueError(f"{name}: expected finite values")
+            check_values(b.get(i), name)
         return _core.time_per_call(self._m, op, b.get(iq)[0], b.get(iv)[0], b.get(it)[0], int(iters))
 
     def __repr__(self):

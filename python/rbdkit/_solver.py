@@ -29,9 +29,9 @@ always float64 in C++.
 import numpy as np
 
 from . import _core
-from ._checks import as_real_array, check_choice, check_scalar
-from ._integrators import INTEGRATORS
-from ._model import Model
+from ._checks import as_real_array, check_choice, check_scalar, check_values
+from ._integrators import INTEGRATORS, check_dt
+from ._model import Model, _flags
 
 GRAVITY = -9.81
 LIMITS = ("position", "velocity", "torque")
@@ -64,11 +64,14 @@ def _vector(x, n, name, allow_scalar=True, nonneg=False):
         a = np.full(n, float(a))
     if a.shape != (n,):
         raise ValueError(f"{name}: expected shape ({n},){' or a scalar' if allow_scalar else ''}, got shape {a.shape}")
-    if not np.all(np.isfinite(a)) and name not in ("q_lower", "q_upper", "v_limit", "u_limit"):
-        raise ValueError(f"{name}: expected finite values")
+    if name not in ("q_lower", "q_upper", "v_limit", "u_limit"):  # limits may be infinite
+        check_values(a, name)
     if nonneg and np.any(a < 0):
         raise ValueError(f"{name}: expected non-negative weights")
     return np.ascontiguousarray(a)
+
+
+INT_MAX = 2**31 - 1  # the C++ options are int
 
 
 def _int(x, name, minimum):
@@ -76,6 +79,8 @@ def _int(x, name, minimum):
         raise TypeError(f"{name}: expected an integer, got {type(x).__name__}")
     if x < minimum:
         raise ValueError(f"{name}: expected an integer >= {minimum}, got {x}")
+    if x > INT_MAX:
+        raise ValueError(f"{name}: expected an integer of at most {INT_MAX} (the C++ option is an int), got {x}")
     return int(x)
 
 
@@ -84,6 +89,8 @@ def ee_body_and_offset(model, ee_frame=None, ee_offset=None):
     joint; default: the first leaf body) with a tool offset in that frame"""
     off = np.zeros(3) if ee_offset is None else _vector(ee_offset, 3, "ee_offset", allow_scalar=False)
     if ee_frame is None:
+        if model.nb == 0:
+            raise ValueError("ee_frame: the model has no joints (nq = 0), so it has no end effector")
         return int(_core.leaf_bodies(model._core)[0]), off
     if not isinstance(ee_frame, str):
         raise TypeError(f"ee_frame: expected a frame name (str), got {type(ee_frame).__name__}")
@@ -125,9 +132,7 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
         raise TypeError(f"model: expected an rbdkit.Model, got {type(model).__name__}")
     nq, nv = model.nq, model.nv
     N = _int(horizon, "horizon", 1)
-    dt = check_scalar(dt, "dt")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt: expected a positive finite time step, got {dt}")
+    dt = check_dt(dt)
     check_choice(integrator_type, "integrator_type", INTEGRATORS)
     gravity = check_scalar(gravity, "gravity")
     x0 = _vector(x0, nq + nv, "x0", allow_scalar=False)
@@ -159,7 +164,8 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
                        W_com=_vector(W_com, 3, "W_com", nonneg=True),
                        W_com_terminal=_vector(W_com_terminal, 3, "W_com_terminal", nonneg=True))
     problem = {k: v for k, v in problem.items() if v is not None}
-    opts = dict(max_iterations=_int(max_iterations, "max_iterations", 0), ddp=bool(ddp))
+    (ddp,) = _flags(ddp=ddp)
+    opts = dict(max_iterations=_int(max_iterations, "max_iterations", 0), ddp=ddp)
     for k, v in options.items():
         opts[k] = _int(v, k, 1) if k == "line_search_steps" else check_scalar(v, k)
 
@@ -170,8 +176,7 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
         a = as_real_array(a, name)
         if a.shape != shape:
             raise ValueError(f"{name}: expected shape {shape}, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"{name}: expected finite values")
+        check_values(a, name)
         return np.ascontiguousarray(a)
     U_init = traj(U_init, (N, nv), "U_init")
     X_init = traj(X_init, (N + 1, nq + nv), "X_init")

@@ -42,8 +42,15 @@ RowMat mat(const std::optional<In>& a) {
   return Eigen::Map<const RowMat>(a->data(), rows, cols);
 }
 
+// d[key] as T (fallback when absent); a value T cannot hold (an integer
+// beyond int's range) names the key rather than nanobind's bad_cast
 template <typename T> T get(const nb::dict& d, const char* key, T fallback) {
-  return d.contains(key) ? nb::cast<T>(d[key]) : fallback;
+  if (!d.contains(key)) return fallback;
+  T v;
+  if (!nb::try_cast<T>(d[key], v))
+    throw std::invalid_argument(std::string(key) + ": expected a value of the C++ option's type (an int within "
+                                "±2147483647 or a float), got " + nb::cast<std::string>(nb::repr(d[key])));
+  return v;
 }
 
 nb::ndarray<nb::numpy, double> to_numpy(const double* data, std::vector<size_t> shape) {

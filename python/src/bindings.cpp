@@ -76,6 +76,10 @@ nb::dict joint_dict(const rbd::JointInfo& j) {
 
 NB_MODULE(_core, m) {
   m.doc() = "rbdkit compiled core";
+  // the documented input bounds (dynamics.hpp)
+  m.attr("MAX_INPUT") = rbd::kMaxInput;
+  m.attr("MAX_ANGLE") = rbd::kMaxAngle;
+  m.attr("MAX_TIME_STEP") = rbd::kMaxTimeStep;
   bind_derivatives(m);
   bind_integrators(m);
   bind_costs(m);

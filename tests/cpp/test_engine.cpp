@@ -323,3 +323,42 @@ TEST(Engine, BadArguments) {
   Engine d(m);
   EXPECT_EQ(d.threads(), Engine::default_threads());
 }
+
+// a joint that moves no mass under the fixed world: float64 and float32
+// engines name it (the pack's D = 0 used to give inf, then NaN results)
+TEST(Engine, JointThatMovesNoMassIsNamed) {
+  const Model m = Model::from_urdf_string(R"(<robot name="r"><link name="base"/>
+    <link name="arm"><inertial><mass value="2"/><origin xyz="0.3 0 0"/>
+      <inertia ixx="0.01" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    <joint name="arm_joint" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/></joint>
+    <link name="cam"/>
+    <joint name="cam_joint" type="revolute"><parent link="base"/><child link="cam"/><axis xyz="0 1 0"/></joint>
+    </robot>)");
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "no exception";
+  };
+  const long B = 5;
+  for (const char* dtype : {"float64", "float32"}) {
+    Engine e(m, 2, dtype);
+    auto run = [&](auto zero) {
+      using T = decltype(zero);
+      std::vector<T> q(B * m.nq, T(0.2)), v(B * m.nv, T(0.1)), out(B * m.nv), M(B * m.nv * m.nv),
+          x(B * (m.nq + m.nv)), AB(B * 6 * m.nv * m.nv);
+      for (const std::string& msg :
+           {message([&] { e.forward_dynamics<T>(B, q.data(), v.data(), v.data(), T(-9.81), out.data()); }),
+            message([&] { e.minv<T>(B, q.data(), M.data()); }),
+            message([&] { e.integrator<T>(B, q.data(), v.data(), v.data(), T(0.01), T(-9.81), 3, x.data()); }),
+            message([&] {
+              e.integrator_gradient<T>(B, q.data(), v.data(), v.data(), T(0.01), T(-9.81), 0, x.data(), AB.data());
+            })})
+        EXPECT_NE(msg.find("joint 'cam_joint' moves no mass at sample 0"), std::string::npos) << dtype << ": " << msg;
+    };
+    if (std::string(dtype) == "float64") run(0.0);
+    else run(0.0f);
+  }
+}

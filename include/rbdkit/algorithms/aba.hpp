@@ -29,12 +29,19 @@ RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q
   }
 }
 
-// the joint-DoF quantities U = IA S, D⁻¹ = (Sᵀ U)⁻¹ for subspace columns Sc[0..n)
+// the joint-DoF quantities U = IA S, D⁻¹ = (Sᵀ U)⁻¹ for subspace columns Sc[0..n).
+// false if D is singular: a joint that moves no mass (D = 0, or D at the
+// rounding level of Σ_r IA_rr S_r², the size of its terms; pivot_positive).
 template <typename S> RBD_HD bool joint_inertia(int n, const Motion<S>* Sc, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
   for (int k = 0; k < n; ++k) U[k] = IA * Sc[k];
   if (n == 1) {
-    Dinv[0] = S(1) / dot(Sc[0], U[0]);
-    return all_lanes(lane_gt(Dinv[0], 0));
+    const Motion<S>& s = Sc[0];
+    const S D = dot(s, U[0]);
+    const S scale = IA(0, 0) * s.lin.x * s.lin.x + IA(1, 1) * s.lin.y * s.lin.y + IA(2, 2) * s.lin.z * s.lin.z +
+                    IA(3, 3) * s.ang.x * s.ang.x + IA(4, 4) * s.ang.y * s.ang.y + IA(5, 5) * s.ang.z * s.ang.z;
+    if (!pivot_positive(D, scale)) return false;
+    Dinv[0] = S(1) / D;
+    return true;
   }
   S D[36];
   for (int k = 0; k < n; ++k)
@@ -120,6 +127,25 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
     }
     w.a[i] += joint_motion(b, qdd + b.v_idx);
   }
+}
+
+// the first body, leaves to root, whose joint's articulated inertia D is
+// singular at q (the test of aba_backward_pass and minv), or -1: names the
+// joint once an algorithm has reported a mass matrix that is not positive
+// definite. writes w.X, w.IA, w.U, w.Dinv
+template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Workspace<S>& w, const S* q) {
+  for (int i = 0; i < m.nb; ++i) {
+    w.X[i] = body_transform(m.body[i], q);
+    w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
+  }
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const BodyDesc<S>& b = m.body[i];
+    Force<S>* U = w.U + 6 * i;
+    S* Dinv = w.Dinv + 36 * i;
+    if (!aba_joint_inertia(b, w.IA[i], U, Dinv)) return i;
+    if (b.parent >= 0) aba_project_inertia(b, w.X[i], w.IA[i], U, Dinv, w.IA[b.parent]);
+  }
+  return -1;
 }
 
 // dense path for mimic models: qdd = M⁻¹ (tau - c) by Cholesky. false if M is singular.

@@ -8,13 +8,24 @@
 
 namespace rbd {
 
+// the positive-definiteness test of a pivot d of a symmetric positive
+// semi-definite matrix whose entries are of size `scale` (e.g. its diagonal
+// before elimination): d must exceed the rounding of the scale, not just 0,
+// so that a singular matrix (a joint that moves no mass: d = 0, or rounding
+// noise of the scale, whose inverse is inf or huge) is reported as singular.
+template <typename S> RBD_HD bool pivot_positive(const S& d, const S& scale) {
+  return all_lanes(lane_gt(d - S(16 * Eps<S>::machine) * scale, 0));
+}
+
 // in place: A (n x n, SPD) -> L with A = L Lᵀ in the lower triangle.
-// returns false if A is not positive definite.
+// returns false if A is not positive definite (a pivot at the rounding
+// level of its diagonal entry: pivot_positive).
 template <typename S> RBD_HD bool cholesky(S* A, int n) {
   for (int j = 0; j < n; ++j) {
     S d = A[j * n + j];
+    const S scale = d;
     for (int k = 0; k < j; ++k) d -= A[j * n + k] * A[j * n + k];
-    if (!all_lanes(lane_gt(d, 0))) return false;
+    if (!pivot_positive(d, scale)) return false;
     d = ssqrt(d);
     A[j * n + j] = d;
     for (int i = j + 1; i < n; ++i) {
