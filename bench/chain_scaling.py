@@ -12,7 +12,10 @@ and a crash (a workspace too large to allocate) is reported, not fatal.
 Columns: load (s, Model.from_urdf_string), then per operation the median
 time per call (ms, over --repeats calls after a first one) and the peak RSS
 of the process (MB; the model and the interpreter included: compare with
-the "model" column, the peak after loading alone). Operations:
+the "model" column, the peak after loading alone); for rnea and aba also
+"core", the ms of the algorithm alone (RBD.time_per_call: C++ calls on one
+held workspace, best of 5 runs; the difference to the first column is the
+per-call cost of checks, a fresh workspace and the outputs). Operations:
 rnea (RBD.inverse_dynamics), aba, integrate, fk (forward_kinematics) and
 euler (RBD.integrator(..., "euler"), one explicit step through ABA).
 """
@@ -74,7 +77,11 @@ def child(n, op, repeats):
         fn()
         times.append(time.perf_counter() - t0)
     peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kilobytes on Linux
-    print(json.dumps({"load": load, "ms": 1e3 * sorted(times)[len(times) // 2], "mb": peak_kb / 1024}))
+    # the algorithm alone: C++ calls on one held workspace, no checks, no allocation
+    core = {"rnea": "inverse_dynamics", "aba": "aba"}.get(op)
+    core_ms = 1e3 * rbd.time_per_call(core, q, qd, x, iters=repeats) if core else None
+    print(json.dumps({"load": load, "ms": 1e3 * sorted(times)[len(times) // 2], "mb": peak_kb / 1024,
+                      "core_ms": core_ms}))
 
 
 def run(n, op, repeats, timeout):
@@ -101,7 +108,8 @@ def main():
         child(int(a.child[0]), a.child[1], a.repeats)
         return
     ops = ["model"] + a.ops
-    print(f"{'links':>7} {'load s':>7} {'model MB':>8} " + " ".join(f"{o + ' ms':>10} {o + ' MB':>9}" for o in ops[1:]))
+    head = [f"{o + ' ms':>10} {o + ' MB':>9}" + (f" {o + ' core':>9}" if o in ("rnea", "aba") else "") for o in ops[1:]]
+    print(f"{'links':>7} {'load s':>7} {'model MB':>8} " + " ".join(head))
     for n in a.sizes:
         cells, load = [], None
         for op in ops:
@@ -110,7 +118,10 @@ def main():
                 cells.append(r["error"])
                 continue
             load = r["load"] if load is None else load
-            cells.append(f"{r['mb']:8.0f}" if op == "model" else f"{r['ms']:10.3f} {r['mb']:9.0f}")
+            cell = f"{r['mb']:8.0f}" if op == "model" else f"{r['ms']:10.3f} {r['mb']:9.0f}"
+            if r["core_ms"] is not None:
+                cell += f" {r['core_ms']:9.3f}"
+            cells.append(cell)
         load_s = f"{load:7.2f}" if load is not None else f"{'-':>7}"
         print(f"{n:7d} {load_s} " + " ".join(cells), flush=True)
 

@@ -1,8 +1,9 @@
 // Workspace layouts (workspace.hpp): the linear layout grows linearly with
 // the model, the O(n) algorithms give bit-identical results in it and in the
 // full one (the linear one poisoned with NaN bytes, so that a read before a
-// write shows), and a 100,000-link chain loads and runs RNEA, checked
-// against the closed-form gravity torques of a horizontal chain.
+// write shows), Dynamics grows its workspace on need, and a 100,000-link
+// chain loads and runs RNEA, checked against the closed-form gravity torques
+// of a horizontal chain.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -10,6 +11,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "rbdkit/integrators_api.hpp"
 #include "rbdkit/kinematics_api.hpp"
@@ -115,6 +118,38 @@ TEST_P(LinearWorkspace, GivesTheFullLayoutsResults) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Models, LinearWorkspace, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
+
+// Dynamics holds a linear workspace until an O(n²) call needs the full one:
+// in any order of calls, every result equals the batched call's with a fresh
+// workspace of its own
+TEST(WorkspaceCache, DynamicsGrowsToTheFullLayoutOnNeed) {
+  for (const char* name : {"mimic", "mixed"}) {
+    const Model m = Model::from_urdf_file(std::string(RBDKIT_TEST_URDF_DIR) + "/" + name + ".urdf", true);
+    Dynamics d(m);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> U(-1, 1);
+    Eigen::VectorXd dq(m.nv), q(m.nq), qd(m.nv), u(m.nv);
+    for (Eigen::VectorXd* x : {&dq, &qd, &u})
+      for (int k = 0; k < x->size(); ++k) (*x)[k] = U(rng);
+    batch::integrate(m, 1, m.neutral().data(), dq.data(), q.data());
+    Vec tau(m.nv), qdd(m.nv), M(m.nv * m.nv);
+    auto same = [](const Eigen::VectorXd& a, const Vec& b) {
+      return std::memcmp(a.data(), b.data(), b.size() * sizeof(double)) == 0;
+    };
+    batch::inverse_dynamics(m, 1, q.data(), qd.data(), u.data(), nullptr, -9.81, tau.data(), nullptr, nullptr,
+                            nullptr);
+    EXPECT_TRUE(same(d.inverse_dynamics(q, qd, u), tau)) << name;  // linear
+    batch::aba(m, 1, q.data(), qd.data(), u.data(), nullptr, -9.81, qdd.data());
+    EXPECT_TRUE(same(d.aba(q, qd, u), qdd)) << name;  // linear (mimic: full)
+    batch::crba(m, 1, q.data(), M.data());
+    const Eigen::MatrixXd Md = d.crba(q);  // full from here on
+    for (int r = 0; r < m.nv; ++r)
+      for (int c = 0; c < m.nv; ++c) EXPECT_EQ(Md(r, c), M[r * m.nv + c]) << name;
+    batch::forward_dynamics(m, 1, q.data(), qd.data(), u.data(), nullptr, -9.81, qdd.data());
+    EXPECT_TRUE(same(d.forward_dynamics(q, qd, u), qdd)) << name;
+    EXPECT_TRUE(same(d.inverse_dynamics(q, qd, u), tau)) << name;  // the full workspace serves it too
+  }
+}
 
 // a horizontal chain of n revolute links about x: joint k sits 0.1 along y
 // from joint k-1, link k has mass 1 at 0.05 along y from its joint
