@@ -127,7 +127,7 @@ void inverse_dynamics(const Model& m, long B, const double* q, const double* qd,
   if (qdd) check_finite(qdd, B * m.nv, "qdd");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const int nb = m.nb();
@@ -170,7 +170,7 @@ void aba(const Model& m, long B, const double* q, const double* qd, const double
   check_finite(tau, B * m.nv, "tau");
   if (fext) check_finite(fext, B * m.nb() * 6, "f_ext");
   check_finite(&gravity, 1, "gravity");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, aba_layout(m));
   const ModelView<double> mv = m.view();
   for (long s = 0; s < B; ++s)
     if (!rbd::aba(mv, buf.get(), q + s * m.nq, qd + s * m.nv, tau + s * m.nv, fext ? fext + s * m.nb() * 6 : nullptr,
@@ -281,7 +281,7 @@ const double* fext_ptr(const Model& m, const Eigen::MatrixXd& fext, std::vector<
 using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 }  // namespace
 
-Dynamics::Dynamics(Model model) : model_(std::move(model)), ws_(model_) {}
+Dynamics::Dynamics(Model model) : model_(std::move(model)) {}
 
 Eigen::VectorXd Dynamics::inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                            const Eigen::VectorXd& qdd, double gravity, const Eigen::MatrixXd& fext) {
@@ -292,21 +292,21 @@ Eigen::VectorXd Dynamics::inverse_dynamics(const Eigen::VectorXd& q, const Eigen
   Eigen::VectorXd tau(model_.nv);
   batch::inverse_dynamics(model_, 1, q.data(), qd.data(), qdd.size() ? qdd.data() : nullptr,
                           fext_ptr(model_, fext, tmp), gravity, tau.data(), nullptr, nullptr, nullptr,
-                          &ws_.get());
+                          &ws_.get(model_, kLinearWorkspace));
   return tau;
 }
 
 Eigen::MatrixXd Dynamics::crba(const Eigen::VectorXd& q) {
   expect_size(q, model_.nq, "q", "nq");
   RowMat M(model_.nv, model_.nv);
-  batch::crba(model_, 1, q.data(), M.data(), &ws_.get());
+  batch::crba(model_, 1, q.data(), M.data(), &ws_.get(model_, kFullWorkspace));
   return M;
 }
 
 Eigen::MatrixXd Dynamics::minv(const Eigen::VectorXd& q, bool dense) {
   expect_size(q, model_.nq, "q", "nq");
   RowMat Mi(model_.nv, model_.nv);
-  batch::minv(model_, 1, q.data(), dense, Mi.data(), &ws_.get());
+  batch::minv(model_, 1, q.data(), dense, Mi.data(), &ws_.get(model_, kFullWorkspace));
   return Mi;
 }
 
@@ -318,7 +318,7 @@ Eigen::VectorXd Dynamics::aba(const Eigen::VectorXd& q, const Eigen::VectorXd& q
   std::vector<double> tmp;
   Eigen::VectorXd qdd(model_.nv);
   batch::aba(model_, 1, q.data(), qd.data(), tau.data(), fext_ptr(model_, fext, tmp), gravity, qdd.data(),
-             &ws_.get());
+             &ws_.get(model_, aba_layout(model_)));
   return qdd;
 }
 
@@ -330,7 +330,7 @@ Eigen::VectorXd Dynamics::forward_dynamics(const Eigen::VectorXd& q, const Eigen
   std::vector<double> tmp;
   Eigen::VectorXd qdd(model_.nv);
   batch::forward_dynamics(model_, 1, q.data(), qd.data(), tau.data(), fext_ptr(model_, fext, tmp), gravity,
-                          qdd.data(), &ws_.get());
+                          qdd.data(), &ws_.get(model_, kFullWorkspace));
   return qdd;
 }
 

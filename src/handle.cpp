@@ -112,7 +112,7 @@ std::string algorithm_of(const std::string& operation) {
 }
 
 Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads)
-    : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)), ws_(model_) {
+    : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)) {
   if (threads < 0)
     throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
                                 std::to_string(threads));
@@ -151,19 +151,20 @@ void Handle::inverse_dynamics(long B, const double* q, const double* qd, const d
     check_finite(&gravity, 1, "gravity");
     return engine_->inverse_dynamics<double>(B, q, qd, qdd, gravity, tau);
   }
-  batch::inverse_dynamics(model_, B, q, qd, qdd, fext, gravity, tau, nullptr, nullptr, nullptr, &ws_.get());
+  batch::inverse_dynamics(model_, B, q, qd, qdd, fext, gravity, tau, nullptr, nullptr, nullptr,
+                          &ws_.get(model_, kLinearWorkspace));
 }
 
 void Handle::crba(long B, const double* q, double* M) {
   require("crba");
   if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->crba<double>(B, q, M);
-  batch::crba(model_, B, q, M, &ws_.get());
+  batch::crba(model_, B, q, M, &ws_.get(model_, kFullWorkspace));
 }
 
 void Handle::minv(long B, const double* q, double* Minv) {
   require("minv");
   if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->minv<double>(B, q, Minv);
-  batch::minv(model_, B, q, true, Minv, &ws_.get());
+  batch::minv(model_, B, q, true, Minv, &ws_.get(model_, kFullWorkspace));
 }
 
 void Handle::aba(long B, const double* q, const double* qd, const double* tau, const double* fext, double gravity,
@@ -174,7 +175,7 @@ void Handle::aba(long B, const double* q, const double* qd, const double* tau, c
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
   }
-  batch::aba(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get());
+  batch::aba(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get(model_, aba_layout(model_)));
 }
 
 void Handle::forward_dynamics(long B, const double* q, const double* qd, const double* tau, const double* fext,
@@ -185,7 +186,7 @@ void Handle::forward_dynamics(long B, const double* q, const double* qd, const d
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
   }
-  batch::forward_dynamics(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get());
+  batch::forward_dynamics(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get(model_, kFullWorkspace));
 }
 
 // ---- first-order derivatives
@@ -201,7 +202,8 @@ void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd
   // batch:: writes [∂tau/∂q | ∂tau/∂qd] (B x nv x 2nv): split it per row
   const long nv = model_.nv;
   scratch_.resize(static_cast<size_t>(B * nv * 2 * nv));
-  batch::inverse_dynamics_gradient(model_, B, q, qd, qdd, fext, gravity, scratch_.data(), &ws_.get());
+  batch::inverse_dynamics_gradient(model_, B, q, qd, qdd, fext, gravity, scratch_.data(),
+                                   &ws_.get(model_, kFullWorkspace));
   for (long r = 0; r < B * nv; ++r) {
     std::copy_n(scratch_.data() + r * 2 * nv, nv, dtau_dq + r * nv);
     std::copy_n(scratch_.data() + r * 2 * nv + nv, nv, dtau_dqd + r * nv);
@@ -216,7 +218,8 @@ void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics_gradient<double>(B, q, qd, tau, gravity, dqdd_dq, dqdd_dqd);
   }
-  batch::forward_dynamics_gradient(model_, B, q, qd, tau, fext, gravity, dqdd_dq, dqdd_dqd, nullptr, &ws_.get());
+  batch::forward_dynamics_gradient(model_, B, q, qd, tau, fext, gravity, dqdd_dq, dqdd_dqd, nullptr,
+                                   &ws_.get(model_, kFullWorkspace));
 }
 
 // ---- integrators and the plant step

@@ -48,7 +48,7 @@ void check_step(const Model& m, long B, const double* q, const double* v, const 
 void integrator(const Model& m, long B, const double* q, const double* v, const double* u, const double* fext,
                 double dt, double gravity, int type, double* x_next, int convention) {
   check_step(m, B, q, v, u, fext, dt, gravity, type, convention);
-  WorkspaceBuffer buf(m);
+  WorkspaceBuffer buf(m, aba_layout(m));  // every explicit step runs on aba
   const ModelView<double> mv = m.view();
   const int nq = m.nq, nv = m.nv;
   std::vector<double> scratch(integrator_scratch_values(nq, nv));

@@ -111,7 +111,7 @@ void store_point(const Vec3<double>& p, double* out) {
 
 void forward_kinematics(const Model& m, long B, const double* q, double* R, double* p, Workspace<double>* ws) {
   check_configurations(m, B, q, "q");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const int nb = m.nb();
@@ -128,7 +128,7 @@ void frame_placement(const Model& m, long B, const double* q, int frame, double*
                      Workspace<double>* ws) {
   check_frame(m, frame);
   check_configurations(m, B, q, "q");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const FrameInfo& f = m.frames[frame];
@@ -144,7 +144,7 @@ void frame_jacobian(const Model& m, long B, const double* q, int frame, int rf, 
   check_frame(m, frame);
   check_rf(rf);
   check_configurations(m, B, q, "q");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const FrameInfo& f = m.frames[frame];
@@ -160,7 +160,7 @@ void frame_jacobian_dot(const Model& m, long B, const double* q, const double* q
   check_rf(rf);
   check_configurations(m, B, q, "q");
   check_finite(qd, B * m.nv, "qd");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const FrameInfo& f = m.frames[frame];
@@ -174,7 +174,7 @@ void end_effector_pose(const Model& m, long B, const double* q, const EndEffecto
                        Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
   check_configurations(m, B, q, "q");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const long n = ee.size();
@@ -189,7 +189,7 @@ void end_effector_pose_gradient(const Model& m, long B, const double* q, const E
                                 Workspace<double>* ws) {
   check_end_effectors(m, B, ee);
   check_configurations(m, B, q, "q");
-  ScopedWorkspace buf(m, ws);
+  ScopedWorkspace buf(m, ws, kLinearWorkspace);
   Workspace<double>& w = buf.get();
   const ModelView<double> mv = m.view();
   const long n = ee.size(), nv = m.nv;

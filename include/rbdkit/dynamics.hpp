@@ -25,29 +25,37 @@
 
 namespace rbd {
 
-// a workspace in scalar S with its own storage (one per thread), 16-byte aligned
+// a workspace in scalar S with its own storage (one per thread), 16-byte
+// aligned; not zero-filled (workspace.hpp), so untouched pages cost nothing
 template <typename S> class WorkspaceBufferT {
  public:
-  explicit WorkspaceBufferT(const Model& m) : storage_(workspace_bytes<S>(m.nb(), m.nv) + 16) {
-    unsigned char* p = storage_.data();
+  explicit WorkspaceBufferT(const Model& m, WorkspaceLayout layout = kFullWorkspace)
+      : storage_(new unsigned char[workspace_bytes<S>(m.nb(), m.nv, layout) + 16]), layout_(layout) {
+    unsigned char* p = storage_.get();
     const auto addr = reinterpret_cast<std::uintptr_t>(p);
     if (addr % 16) p += 16 - addr % 16;
-    ws_ = carve_workspace<S>(p, m.nb(), m.nv);
+    ws_ = carve_workspace<S>(p, m.nb(), m.nv, layout);
   }
   Workspace<S>& get() { return ws_; }
+  WorkspaceLayout layout() const { return layout_; }
 
  private:
-  std::vector<unsigned char> storage_;
+  std::unique_ptr<unsigned char[]> storage_;
+  WorkspaceLayout layout_;
   Workspace<S> ws_;
 };
 using WorkspaceBuffer = WorkspaceBufferT<double>;
 
-// the caller's workspace, or one of our own for the duration of a call
+// the layout aba needs: linear, full for mimic models (their dense path)
+inline WorkspaceLayout aba_layout(const Model& m) { return m.has_mimic() ? kFullWorkspace : kLinearWorkspace; }
+
+// the caller's workspace, or one of our own of the given layout for the
+// duration of a call (a caller's workspace must hold that layout)
 class ScopedWorkspace {
  public:
-  ScopedWorkspace(const Model& m, Workspace<double>* given) : w_(given) {
+  ScopedWorkspace(const Model& m, Workspace<double>* given, WorkspaceLayout layout = kFullWorkspace) : w_(given) {
     if (!w_) {
-      own_.reset(new WorkspaceBuffer(m));
+      own_.reset(new WorkspaceBuffer(m, layout));
       w_ = &own_->get();
     }
   }
@@ -56,6 +64,24 @@ class ScopedWorkspace {
  private:
   std::unique_ptr<WorkspaceBuffer> own_;
   Workspace<double>* w_;
+};
+
+// a held workspace that grows with need (one per thread): linear until a
+// call asks for the full layout, full from then on. What Dynamics and Handle
+// keep, so that a model of many links pays for the quadratic arrays only
+// once an O(n²) algorithm runs on it.
+class WorkspaceCache {
+ public:
+  Workspace<double>& get(const Model& m, WorkspaceLayout layout) {
+    if (!buf_ || (layout == kFullWorkspace && buf_->layout() != kFullWorkspace)) {
+      buf_.reset();  // the old one goes first: the peak is one workspace
+      buf_.reset(new WorkspaceBuffer(m, layout));
+    }
+    return buf_->get();
+  }
+
+ private:
+  std::unique_ptr<WorkspaceBuffer> buf_;
 };
 
 // ---- input checks (throw std::invalid_argument)
@@ -95,7 +121,8 @@ int singular_joint(const Model& m, const double* q);
 
 // The dynamics functions take an optional workspace (made with
 // WorkspaceBuffer for the same model); without one they allocate their own
-// once per call.
+// once per call. inverse_dynamics needs the linear layout, aba aba_layout(m),
+// the others the full one.
 namespace batch {
 // tau (B x nv); per-body v, a (without gravity), f (joint force) (B x nb x 6) when not null
 void inverse_dynamics(const Model& m, long B, const double* q, const double* qd, const double* qdd,
@@ -145,13 +172,14 @@ class Dynamics {
   Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v);
   Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1);
 
-  // unchecked fast paths on raw arrays for benchmarks and inner loops
-  Workspace<double>& workspace() { return ws_.get(); }
+  // unchecked fast paths on raw arrays for benchmarks and inner loops (a
+  // full workspace)
+  Workspace<double>& workspace() { return ws_.get(model_, kFullWorkspace); }
   ModelView<double> view() const { return model_.view(); }
 
  private:
   Model model_;
-  WorkspaceBuffer ws_;
+  WorkspaceCache ws_;
 };
 
 }  // namespace rbd

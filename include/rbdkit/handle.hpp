@@ -145,7 +145,7 @@ class Handle {
   Model model_;
   std::vector<std::string> algorithms_;
   std::vector<std::string> operations_;
-  WorkspaceBuffer ws_;
+  WorkspaceCache ws_;  // linear until an O(n²) operation runs
   std::unique_ptr<Engine> engine_;  // null when threads = 0
   // the engine's input checks (the batch:: entry points check their own)
   void check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,

@@ -51,7 +51,9 @@ struct EndEffectors {
 };
 
 // The functions take an optional workspace (WorkspaceBuffer of the same
-// model); without one they allocate their own once per call.
+// model); without one they allocate their own once per call, of the linear
+// layout (workspace.hpp) from forward_kinematics to end_effector_pose_gradient,
+// the full one for the others.
 namespace batch {
 // X_world_body of every body: R (B x nb x 3 x 3), p (B x nb x 3)
 void forward_kinematics(const Model& m, long B, const double* q, double* R, double* p,

@@ -186,10 +186,15 @@ NB_MODULE(_core, m) {
   m.def("time_per_call",
         [](const Model& md, const std::string& op, In q, In qd, In tau, int iters) {
           nb::gil_scoped_release r;
-          rbd::WorkspaceBuffer buf(md);
+          // the workspace and output the operation needs: linear and (nv) for the O(n) ones
+          const bool quadratic = op == "crba" || op == "minv";
+          const rbd::WorkspaceLayout layout = op == "inverse_dynamics" ? rbd::kLinearWorkspace
+                                              : op == "aba"            ? rbd::aba_layout(md)
+                                                                       : rbd::kFullWorkspace;
+          rbd::WorkspaceBuffer buf(md, layout);
           rbd::Workspace<double>& w = buf.get();
           const rbd::ModelView<double> mv = md.view();
-          std::vector<double> out(md.nv * md.nv);
+          std::vector<double> out(quadratic ? size_t(md.nv) * md.nv : size_t(md.nv));
           const double* fx = nullptr;
           if (op == "inverse_dynamics")
             return seconds_per_call([&] { rbd::rnea(mv, w, q.data(), qd.data(), tau.data(), fx, -9.81, out.data()); }, iters);
