@@ -19,9 +19,10 @@ namespace rbd {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// the largest magnitude accepted for a length (m) or an inertia value (kg, kg·m²,
-// kg·m): beyond it the dynamics of an ordinary state overflow or lose every
-// digit (a robot of 1e12 m or 1e15 kg is an input error, not a robot)
+// the largest magnitude accepted for a length (m) or a mimic multiplier or
+// offset (also after a chain is flattened), and for an inertia value (kg,
+// kg·m, kg·m²): beyond them the dynamics of an ordinary state overflow or lose
+// every digit (a robot of 1e12 m or 1e15 kg is an input error, not a robot)
 constexpr double kMaxLength = 1e12;
 constexpr double kMaxInertia = 1e15;
 
@@ -160,8 +161,10 @@ void ModelBuilder::add_inertia(int body, const Inertia<double>& I_link, const Tr
   check_inertia(I_link, what);
   check_transform(X_body_link, what + " placement");
   if (body < 0) return;
-  model_.bodies[body].I += transform_inertia(X_body_link, I_link);
-  check_inertia(model_.bodies[body].I, what + " (merged)");
+  Inertia<double> merged = model_.bodies[body].I;
+  merged += transform_inertia(X_body_link, I_link);
+  check_inertia(merged, what + " (merged)");  // refused: the body is left as it was
+  model_.bodies[body].I = merged;
 }
 
 void ModelBuilder::add_frame(const std::string& name, const std::string& kind, int body,
@@ -173,8 +176,10 @@ void ModelBuilder::add_frame(const std::string& name, const std::string& kind, i
 }
 
 void ModelBuilder::add_mimic(const std::string& joint, const std::string& target, double multiplier, double offset) {
-  if (!std::isfinite(multiplier) || !std::isfinite(offset))
-    fail("add_mimic: joint '" + joint + "' has a non-finite multiplier or offset");
+  if (!std::isfinite(multiplier) || std::fabs(multiplier) > kMaxLength || !std::isfinite(offset) ||
+      std::fabs(offset) > kMaxLength)
+    fail("add_mimic: joint '" + joint + "' has multiplier " + num(multiplier) + " and offset " + num(offset) +
+         ", expected finite values of magnitude at most " + num(kMaxLength));
   mimics_.push_back({joint, target, multiplier, offset});
 }
 
@@ -215,6 +220,9 @@ Model ModelBuilder::build() {
       mu *= mult[cur];
       cur = direct[cur];
     }
+    if (std::fabs(mu) > kMaxLength || std::fabs(off) > kMaxLength)
+      fail("mimic joint '" + m.joints[i].name + "' follows '" + m.joints[cur].name + "' through a chain whose " +
+           "multiplier " + num(mu) + " or offset " + num(off) + " exceeds " + num(kMaxLength) + " in magnitude");
     root[i] = cur;
     m.joints[i].mimic_of = m.joints[cur].name;
     m.joints[i].multiplier = mu;

@@ -65,7 +65,8 @@ class ModelBuilder {
   // any word of the caller's ("site", ...)
   void add_frame(const std::string& name, const std::string& kind, int body, const Transform<double>& X_body_frame);
   // joint `joint` follows `target`: q_joint = multiplier·q_target + offset; both
-  // 1-DoF. Chains are flattened and cycles rejected in build().
+  // 1-DoF; |multiplier|, |offset| <= 1e12. Chains are flattened (the same
+  // bound on the result) and cycles rejected in build().
   void add_mimic(const std::string& joint, const std::string& target, double multiplier = 1, double offset = 0);
   void add_warning(const std::string& warning);
 

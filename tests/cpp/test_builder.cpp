@@ -217,3 +217,45 @@ TEST(Builder, BadInputNamesIt) {
   c.add_mimic("j", "nowhere");
   EXPECT_NE(error_of([&] { c.build(); }).find("'nowhere' is not a joint"), std::string::npos);
 }
+
+// found by fuzzing: a refused add_inertia leaves the body as it was, and mimic
+// couplings whose (flattened) multiplier or offset would overflow are refused
+TEST(Builder, RefusedInputLeavesNoTrace) {
+  ModelBuilder b("t");
+  JointSpec j;
+  j.name = "j1";
+  j.type = "revolute";
+  const int body = b.add_body(-1, j, "a", rigid_inertia(1.0, {0, 0, 0}, Mat3<double>::identity()));
+  Inertia<double> heavy = Inertia<double>::zero();
+  heavy.m = 9e14;  // accepted alone, refused once merged with the next one
+  b.add_inertia(body, heavy, Transform<double>::identity());
+  EXPECT_NE(error_of([&] { b.add_inertia(body, heavy, Transform<double>::identity()); }).find("(merged)"),
+            std::string::npos);
+  const Model m = b.build();
+  EXPECT_EQ(m.bodies[0].I.m, 1.0 + 9e14);
+}
+
+TEST(Builder, MimicMultipliersAndOffsetsAreBounded) {
+  auto chain = [](double mult, double offset) {
+    ModelBuilder b("t");
+    int parent = -1;
+    for (const char* name : {"drive", "f1", "f2"}) {
+      JointSpec j;
+      j.name = name;
+      j.type = "revolute";
+      parent = b.add_body(parent, j, std::string(name) + "_link", rigid_inertia(1.0, {0, 0, 0}, Mat3<double>::identity()));
+    }
+    b.add_mimic("f1", "drive", mult, offset);
+    b.add_mimic("f2", "f1", mult, offset);
+    return b;
+  };
+  EXPECT_NE(error_of([&] { chain(1e200, 0); }).find("add_mimic: joint 'f1' has multiplier 1e+200"), std::string::npos);
+  EXPECT_NE(error_of([&] { chain(1, 1e300); }).find("offset 1e+300"), std::string::npos);
+  // each within the bound, the flattened chain beyond it
+  EXPECT_NE(error_of([&] { chain(1e7, 0).build(); }).find("mimic joint 'f2' follows 'drive' through a chain"),
+            std::string::npos);
+  const Model m = chain(-2, 0.5).build();
+  EXPECT_EQ(m.joints[2].mimic_of, "drive");
+  EXPECT_EQ(m.joints[2].multiplier, 4.0);   // q_f2 = -2 q_f1 + 0.5 = 4 q_drive - 1 + 0.5
+  EXPECT_EQ(m.joints[2].offset, -0.5);
+}
