@@ -82,7 +82,10 @@ for t in "${targets[@]}"; do
   if compgen -G "tests/fuzz/regressions/$t/*" >/dev/null; then
     echo "fuzz: $t: replaying tests/fuzz/regressions/$t/"
     "$bin" tests/fuzz/regressions/$t/* 2>"$out/replay_$t.log" ||
-      { tail -n 40 "$out/replay_$t.log"; echo "fuzz: $t: a regression input fails again (log: $out/replay_$t.log)" >&2; exit 1; }
+      { tail -n 40 "$out/replay_$t.log"
+        echo "fuzz: $t: a regression input fails again: $(grep -a '^Running: ' "$out/replay_$t.log" | tail -n 1 |
+          cut -d' ' -f2-) (log: $out/replay_$t.log)" >&2
+        exit 1; }
   fi
   cp tests/fuzz/corpus/$t/* "$corpus"/ 2>/dev/null || true
   if [[ $t == urdf ]]; then cp tests/urdf/*.urdf robots/*.urdf "$corpus"/; fi

@@ -97,9 +97,12 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
     }
     RBD_FUZZ_CHECK(std::isfinite(b.pitch) && (b.type == kHelical || b.pitch == 0));
     check_transform(b.X_tree);
-    RBD_FUZZ_CHECK(std::isfinite(b.I.m) && b.I.m >= 0);
-    RBD_FUZZ_CHECK(std::isfinite(b.I.h.x) && std::isfinite(b.I.h.y) && std::isfinite(b.I.h.z));
-    RBD_FUZZ_CHECK(finite_all(b.I.I.m, 9));
+    // the builder's bounds: lengths of at most 1e12 m, inertia values of at most 1e15
+    RBD_FUZZ_CHECK(std::fabs(b.X_tree.p.x) <= 1e12 && std::fabs(b.X_tree.p.y) <= 1e12 &&
+                   std::fabs(b.X_tree.p.z) <= 1e12 && std::fabs(b.pitch) <= 1e12);
+    RBD_FUZZ_CHECK(b.I.m >= 0 && b.I.m <= 1e15);
+    RBD_FUZZ_CHECK(std::fabs(b.I.h.x) <= 1e15 && std::fabs(b.I.h.y) <= 1e15 && std::fabs(b.I.h.z) <= 1e15);
+    for (double x : b.I.I.m) RBD_FUZZ_CHECK(std::fabs(x) <= 1e15);
   }
   RBD_FUZZ_CHECK(nq == m.nq && nv == m.nv);
   for (int i = nb - 1; i >= 0; --i)
