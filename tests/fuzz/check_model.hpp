@@ -170,11 +170,12 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
   // distance of a body origin from the world origin (not with M, which can be
   // far smaller after cancellation, e.g. a huge izz about a joint's x axis)
   double L = 1, scale = 0;
-  for (const BodyDesc<double>& b : m.bodies) L += std::sqrt(dot(b.X_tree.p, b.X_tree.p));
+  // (hypot: no underflow of tiny squares)
+  for (const BodyDesc<double>& b : m.bodies) L += std::hypot(b.X_tree.p.x, b.X_tree.p.y, b.X_tree.p.z);
   for (const BodyDesc<double>& b : m.bodies) {
     double I_max = 0;
     for (double x : b.I.I.m) I_max = std::max(I_max, std::fabs(x));
-    scale += I_max + 2 * std::sqrt(dot(b.I.h, b.I.h)) * L + b.I.m * L * L;
+    scale += I_max + 2 * std::hypot(b.I.h.x, b.I.h.y, b.I.h.z) * L + b.I.m * L * L;
   }
   for (double x : M) scale = std::max(scale, std::fabs(x));
   const double tol = 1e-11 * (nb + nv) * scale + 1e-300;
