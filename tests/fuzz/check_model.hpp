@@ -165,19 +165,27 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
   RBD_FUZZ_CHECK(finite_all(tau.data(), tau.size()));
   batch::crba(m, 1, q.data(), M.data(), &ws);
   RBD_FUZZ_CHECK(finite_all(M.data(), M.size()));
-  // rounding: CRBA works with world-frame inertias, so the tolerance scales
-  // with the largest of them, |I| + 2|h| L + m L² for L a bound on the
-  // distance of a body origin from the world origin (not with M, which can be
-  // far smaller after cancellation, e.g. a huge izz about a joint's x axis)
-  double L = 1, scale = 0;
-  // (hypot: no underflow of tiny squares)
-  for (const BodyDesc<double>& b : m.bodies) L += std::hypot(b.X_tree.p.x, b.X_tree.p.y, b.X_tree.p.z);
+  // rounding: CRBA works with world-frame inertias and subspace columns, so
+  // the tolerance scales with the largest of them, (|I| + 2|h| L + m L²) μ²,
+  // L a bound on the distance of a body origin from the world origin (mimic
+  // offsets displace bodies at the neutral configuration) and μ the largest
+  // mimic multiplier; not with M, which can be far smaller after cancellation
+  // (a huge izz about a joint's x axis). hypot: no underflow of tiny squares.
+  double L = 1, mu = 1, scale = 0;
+  for (const BodyDesc<double>& b : m.bodies) {
+    L += std::hypot(b.X_tree.p.x, b.X_tree.p.y, b.X_tree.p.z);
+    mu = std::max(mu, std::fabs(b.mult));
+  }
+  double far = 0;
+  for (int i = 0; i < nb; ++i) far = std::max(far, std::hypot(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+  L += far;
   for (const BodyDesc<double>& b : m.bodies) {
     double I_max = 0;
     for (double x : b.I.I.m) I_max = std::max(I_max, std::fabs(x));
-    scale += I_max + 2 * std::hypot(b.I.h.x, b.I.h.y, b.I.h.z) * L + b.I.m * L * L;
+    scale += (I_max + 2 * std::hypot(b.I.h.x, b.I.h.y, b.I.h.z) * L + b.I.m * L * L) * mu * mu;
   }
   for (double x : M) scale = std::max(scale, std::fabs(x));
+  if (!(scale <= 1e300)) return;  // no meaningful tolerance (huge mimic multipliers)
   const double tol = 1e-11 * (nb + nv) * scale + 1e-300;
   for (int r = 0; r < nv; ++r) {
     double Mqdd = 0;
