@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: installs what is needed, builds the C++ library, its tests and
-# the CUDA kernel check (nvcc), runs ctest, builds the Python package and
-# runs pytest (Pinocchio equivalence included; nothing is skipped), then the
+# the CUDA kernel check (nvcc), runs ctest (also under ASan/UBSan), fuzzes
+# the URDF reader and ModelBuilder briefly (scripts/fuzz.sh), builds the
+# Python package and runs pytest (Pinocchio equivalence included; nothing is skipped), then the
 # comparison with Pinocchio's C++ second-order derivatives (tests/pinocchio_so).
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -27,6 +28,10 @@ cmake -S . -B build/sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBDKIT_CUDA_CHE
   -DCMAKE_CXX_FLAGS="$san -DRBDKIT_ENGINE_NO_FLATTEN" -DCMAKE_EXE_LINKER_FLAGS="$san" >/dev/null
 cmake --build build/sanitize -j "$JOBS"
 (cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E find_package_consumer)
+
+# ---- fuzzing (libFuzzer, clang, ASan/UBSan): the URDF reader and ModelBuilder,
+# saved regression inputs first, then up to 30 s per target (scripts/fuzz.sh)
+JOBS="$JOBS" scripts/fuzz.sh
 
 # ---- second-order derivatives against Pinocchio's C++ library (not in its
 # Python module): one program built against the `pin` wheel (build/pinocchio_so)

@@ -13,7 +13,8 @@ if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
 
 # ---- Debian packages
 pkgs=(cmake g++ make libeigen3-dev libtinyxml2-dev)
-if [[ $with_test == 1 ]]; then pkgs+=(libgtest-dev googletest libbenchmark-dev); fi
+# clang and libFuzzer (libclang-rt-dev) for scripts/fuzz.sh
+if [[ $with_test == 1 ]]; then pkgs+=(libgtest-dev googletest libbenchmark-dev clang libclang-rt-dev); fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
