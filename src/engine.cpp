@@ -112,22 +112,27 @@ class Pool {
 };
 
 // one thread's buffer: a workspace of packs, then the call's packed
-// inputs, outputs and scratch (64-byte aligned)
+// inputs, outputs and scratch (64-byte aligned). The workspace has the
+// linear layout until an operation needs the full one, and keeps the full
+// one from then on (a full workspace serves every operation).
 template <typename P> struct ThreadBuffer {
   std::unique_ptr<unsigned char[]> mem;
   unsigned long bytes = 0, ws_bytes = 0;
+  WorkspaceLayout layout = kLinearWorkspace;
   Workspace<P> ws;
   unsigned char* base = nullptr;
 
-  void reserve(int nb, int nv, long values) {
-    ws_bytes = (workspace_bytes<P>(nb, nv) + 63ul) & ~63ul;
+  void reserve(int nb, int nv, long values, WorkspaceLayout need_layout) {
+    if (need_layout == kFullWorkspace) layout = kFullWorkspace;
+    ws_bytes = (workspace_bytes<P>(nb, nv, layout) + 63ul) & ~63ul;
     const unsigned long need = ws_bytes + sizeof(P) * static_cast<unsigned long>(values) + 64;
-    if (need <= bytes) return;
-    mem.reset(new unsigned char[need]);
-    bytes = need;
-    const auto addr = reinterpret_cast<std::uintptr_t>(mem.get());
-    base = mem.get() + ((64 - addr % 64) % 64);
-    ws = carve_workspace<P>(base, nb, nv);
+    if (need > bytes) {
+      mem.reset(new unsigned char[need]);
+      bytes = need;
+      const auto addr = reinterpret_cast<std::uintptr_t>(mem.get());
+      base = mem.get() + ((64 - addr % 64) % 64);
+    }
+    ws = carve_workspace<P>(base, nb, nv, layout);
   }
   P* values() { return reinterpret_cast<P*>(base + ws_bytes); }
 };
@@ -230,9 +235,10 @@ template <typename T> struct EngineT : Engine::Impl {
     }
   };
 
+  // the kernel on B knot points; `layout`: the workspace the kernel needs
   template <typename K>
   void run(const char* what, long B, std::initializer_list<In<T>> ins, std::initializer_list<Out<T>> outs,
-           long scratch, const K& kernel) {
+           long scratch, const K& kernel, WorkspaceLayout layout = kFullWorkspace) {
     if (B <= 0) {
       std::ostringstream os;
       os << what << ": B: expected a positive batch size, got " << B;
@@ -253,7 +259,7 @@ template <typename T> struct EngineT : Engine::Impl {
     for (const Out<T>& a : outs) job.out[i++] = a, values += a.p ? a.w : 0;
     job.scratch = scratch;
     job.kernel = &kernel;
-    for (int t = 0; t < job.active; ++t) buffers[t].reserve(model.nb(), model.nv, values);
+    for (int t = 0; t < job.active; ++t) buffers[t].reserve(model.nb(), model.nv, values, layout);
     pool.run(job.active, &Job<K>::call, &job);
     const long f = job.failed.load();
     if (f >= 0) {
@@ -346,7 +352,7 @@ void Engine::inverse_dynamics(long B, const T* q, const T* qd, const T* qdd, T g
     rnea(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
     return true;
   };
-  e.run("inverse_dynamics", B, {{q, nq}, {qd, nv}, {qdd, nv}}, {{tau, nv}}, 0, k);
+  e.run("inverse_dynamics", B, {{q, nq}, {qd, nv}, {qdd, nv}}, {{tau, nv}}, 0, k, kLinearWorkspace);
 }
 
 template <typename T> void Engine::crba(long B, const T* q, T* M) {
@@ -379,7 +385,7 @@ void Engine::forward_dynamics(long B, const T* q, const T* qd, const T* tau, T g
   auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
     return aba(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
   };
-  e.run("forward_dynamics", B, {{q, nq}, {qd, nv}, {tau, nv}}, {{qdd, nv}}, 0, k);
+  e.run("forward_dynamics", B, {{q, nq}, {qd, nv}, {tau, nv}}, {{qdd, nv}}, 0, k, aba_layout(e.model));
 }
 
 template <typename T>
@@ -429,7 +435,8 @@ void Engine::integrator(long B, const T* q, const T* qd, const T* u, T dt, T gra
     return integrator_step(m, w, type, in[0], in[1], in[2], static_cast<const P*>(nullptr), h, g, out[0],
                            out[0] + nq, scratch);
   };
-  e.run("integrator", B, {{q, nq}, {qd, nv}, {u, nv}}, {{x, nq + nv}}, integrator_scratch_values(nq, nv), k);
+  e.run("integrator", B, {{q, nq}, {qd, nv}, {u, nv}}, {{x, nq + nv}}, integrator_scratch_values(nq, nv), k,
+        aba_layout(e.model));  // every explicit step runs on aba
 }
 
 template <typename T>

@@ -24,8 +24,11 @@
 // i.e. W · workspace_bytes<T>(nb, nv)), the lane-interleaved inputs and
 // outputs of the call, and the integrators' scratch
 // (integrator_gradient_scratch_values(nq, nv) values per knot point):
-// per knot point, workspace_bytes<T>(nb, nv) + sizeof(T) · (inputs +
-// outputs + scratch values). workspace_bytes() reports the current total.
+// per knot point, workspace_bytes<T>(nb, nv, layout) + sizeof(T) · (inputs +
+// outputs + scratch values). The layout is linear (O(nb + nv)) while only
+// inverse_dynamics, forward_dynamics and integrator have run (on a model
+// without mimic joints), full (O(nb·nv + nv²)) from the first call of any
+// other operation on. workspace_bytes() reports the current total.
 //
 // One call at a time per engine (calls from several threads serialise).
 #pragma once

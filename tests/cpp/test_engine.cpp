@@ -362,3 +362,50 @@ TEST(Engine, JointThatMovesNoMassIsNamed) {
     else run(0.0f);
   }
 }
+
+// ID, FD and the explicit integrator steps need only the linear workspace
+// (O(nb + nv) per knot point): the engine's buffers grow linearly with the
+// chain until an operation that needs the full one runs, and the results
+// are bit-identical to those of an engine that holds the full one
+TEST(Engine, LinearOperationsKeepALinearWorkspace) {
+  auto chain = [](int n) {
+    std::string s = "<robot name=\"chain\"><link name=\"l0\"/>";
+    for (int k = 1; k <= n; ++k) {
+      const std::string i = std::to_string(k), p = std::to_string(k - 1);
+      s += "<link name=\"l" + i + "\"><inertial><origin xyz=\"0 0.05 0\"/><mass value=\"1\"/>"
+           "<inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/></inertial></link>"
+           "<joint name=\"j" + i + "\" type=\"revolute\"><parent link=\"l" + p + "\"/><child link=\"l" + i +
+           "\"/><origin xyz=\"0 0.1 0\"/><axis xyz=\"1 0 0\"/></joint>";
+    }
+    return Model::from_urdf_string(s + "</robot>");
+  };
+  const long B = 3;
+  auto run_linear_ops = [&](Engine& e, const Model& m, std::vector<double>& out) {
+    std::vector<double> q(B * m.nq), qd(B * m.nv), u(B * m.nv);
+    for (size_t k = 0; k < q.size(); ++k) q[k] = 0.01 * std::sin(0.7 * k), qd[k] = 0.1 * std::cos(0.3 * k);
+    for (size_t k = 0; k < u.size(); ++k) u[k] = 0.5 * std::sin(1.3 * k);
+    std::vector<double> tau(B * m.nv), qdd(B * m.nv), x(B * (m.nq + m.nv));
+    e.inverse_dynamics(B, q.data(), qd.data(), u.data(), -9.81, tau.data());
+    e.forward_dynamics(B, q.data(), qd.data(), u.data(), -9.81, qdd.data());
+    e.integrator(B, q.data(), qd.data(), u.data(), 0.01, -9.81, rbd::kRK4, x.data());
+    out = tau;
+    out.insert(out.end(), qdd.begin(), qdd.end());
+    out.insert(out.end(), x.begin(), x.end());
+  };
+  const Model small = chain(150), big = chain(300);
+  Engine es(small, 1), eb(big, 1);
+  std::vector<double> rs, rb;
+  run_linear_ops(es, small, rs);
+  run_linear_ops(eb, big, rb);
+  const double linear_ratio = double(eb.workspace_bytes()) / double(es.workspace_bytes());
+  EXPECT_LT(linear_ratio, 2.3) << es.workspace_bytes() << " -> " << eb.workspace_bytes();
+  // an engine that has run CRBA holds the full layout (quadratic) and gives the same bits
+  Engine full(big, 1);
+  std::vector<double> q(B * big.nq, 0.0), M(B * big.nv * big.nv);
+  full.crba(B, q.data(), M.data());
+  EXPECT_GT(double(full.workspace_bytes()) / double(eb.workspace_bytes()), 4.0);
+  std::vector<double> rf;
+  run_linear_ops(full, big, rf);
+  ASSERT_EQ(rf.size(), rb.size());
+  for (size_t k = 0; k < rf.size(); ++k) ASSERT_EQ(rf[k], rb[k]) << k;
+}

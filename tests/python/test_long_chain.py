@@ -1,7 +1,8 @@
 """Long serial chains: a 100,000-link chain loads and its RNEA matches the
 closed-form gravity torques; RNEA, ABA, forward kinematics, integrate and an
-explicit integrator step on a 20,000-link chain stay under 1 GB of peak
-memory (O(n) workspaces; timing is in bench/chain_scaling.py)."""
+explicit integrator step on a 20,000-link chain, one sample at a time and
+batched through a Handle's engine, stay under 1 GB of peak memory (O(n)
+workspaces; timing is in bench/chain_scaling.py)."""
 
 import os
 import subprocess
@@ -57,6 +58,13 @@ PEAK_SCRIPT = textwrap.dedent("""
     rbd.forward_kinematics(q)
     rbd.integrate(q, qd)
     rbd.integrator(q, qd, tau, 1e-3, "euler")
+    # the batched engine behind a Handle: linear workspaces for these too
+    h = rbdkit.Handle(rbd.model, threads=2)
+    Q, V, U = (rng.uniform(-0.1, 0.1, (4, n)) for _ in range(3))
+    T = h.inverse_dynamics(Q, V, U)
+    assert np.max(np.abs(T[1] - rbd.inverse_dynamics(Q[1], V[1], U[1])[0])) < 1e-9 * np.max(np.abs(T[1]))
+    h.aba(Q, V, T)
+    h.integrator(Q, V, T, 1e-3, "rk4")
     print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)  # kB on Linux
 """)
 
