@@ -28,7 +28,9 @@ while [[ $# -gt 0 ]]; do
 done
 # no option: both limits; one option: that limit alone (-runs=-1 and
 # -max_total_time=0 mean none to libFuzzer)
-if [[ -z "$runs" && -z "$secs" ]]; then runs=100000 secs=30; fi
+# (and a fixed seed: ./test.sh's short run is the same every time)
+seed=()
+if [[ -z "$runs" && -z "$secs" ]]; then runs=100000 secs=30 seed=(-seed=1); fi
 runs=${runs:--1}
 secs=${secs:-0}
 CXX=${FUZZ_CXX:-clang++}
@@ -95,7 +97,7 @@ for t in "${targets[@]}"; do
   echo "fuzz: $t: runs $( [[ $runs -ge 0 ]] && echo "$runs" || echo "unlimited" ), time $( [[ $secs -gt 0 ]] && echo "$secs s" || echo "unlimited" )"
   status=0
   nice "$bin" "$corpus" "${dict[@]}" -runs="$runs" -max_total_time="$secs" -max_len=16384 -timeout=20 \
-    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$crashes/" "${extra[@]}" 2>"$out/fuzz_$t.log" ||
+    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$crashes/" "${seed[@]}" "${extra[@]}" 2>"$out/fuzz_$t.log" ||
     status=$?
   grep -E '^(#[0-9]+[[:space:]]+DONE|Done [0-9]+ runs|stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb))' \
     "$out/fuzz_$t.log" || true

@@ -47,6 +47,11 @@ void check_transform(const Transform<double>& X, const std::string& what) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) err = std::fmax(err, std::fabs(E(r, c) - (r == c ? 1.0 : 0.0)));
   if (err > 1e-9) fail(what + ": the rotation is not orthonormal (|RᵀR - 1| = " + num(err) + ")");
+  const Mat3<double>& R = X.R;
+  const double det = R(0, 0) * (R(1, 1) * R(2, 2) - R(1, 2) * R(2, 1)) -
+                     R(0, 1) * (R(1, 0) * R(2, 2) - R(1, 2) * R(2, 0)) +
+                     R(0, 2) * (R(1, 0) * R(2, 1) - R(1, 1) * R(2, 0));
+  if (det < 0) fail(what + ": the rotation is a reflection (det = " + num(det) + "), not a rotation");
 }
 
 void check_inertia(const Inertia<double>& I, const std::string& what) {
@@ -56,10 +61,17 @@ void check_inertia(const Inertia<double>& I, const std::string& what) {
     if (!std::isfinite(x) || std::fabs(x) > kMaxInertia)
       fail(what + ": the inertia has " + num(x) + ", expected finite values of magnitude at most " + num(kMaxInertia));
   if (I.m < 0) fail(what + ": negative mass " + num(I.m) + " (mass must be >= 0)");
+  // the algorithms read I as symmetric (some only its upper triangle)
+  double largest = 0, asym = 0;
+  for (int k = 0; k < 9; ++k) largest = std::fmax(largest, std::fabs(I.I.m[k]));
+  for (int r = 0; r < 3; ++r)
+    for (int c = r + 1; c < 3; ++c) asym = std::fmax(asym, std::fabs(I.I(r, c) - I.I(c, r)));
+  if (asym > 1e-9 * largest)
+    fail(what + ": the rotational inertia is not symmetric (|I - Iᵀ| = " + num(asym) + ")");
 }
 
-// the unit vector along a, scaled first so that huge or tiny entries do not
-// overflow or underflow the norm
+}  // namespace
+
 Vec3<double> unit_axis(const Vec3<double>& a, const std::string& what) {
   const double s = std::fmax(std::fabs(a.x), std::fmax(std::fabs(a.y), std::fabs(a.z)));
   if (!std::isfinite(a.x) || !std::isfinite(a.y) || !std::isfinite(a.z))
@@ -69,7 +81,6 @@ Vec3<double> unit_axis(const Vec3<double>& a, const std::string& what) {
   return (1.0 / std::sqrt(dot(b, b))) * b;
 }
 
-}  // namespace
 
 Inertia<double> rigid_inertia(double mass, const Vec3<double>& com, const Mat3<double>& I_com) {
   const Mat3<double> C = skew(com);

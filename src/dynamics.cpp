@@ -89,7 +89,8 @@ void check_configurations(const Model& m, long B, const double* q, const char* a
 }
 
 int singular_joint(const Model& m, const double* q) {
-  WorkspaceBuffer buf(m);  // the error path only
+  if (m.has_mimic()) return -1;  // the tree test does not apply: mimic models use the dense path
+  WorkspaceBuffer buf(m, kLinearWorkspace);  // the error path only (aba_singular_body: X, IA, U, Dinv)
   return aba_singular_body(m.view(), buf.get(), q);
 }
 

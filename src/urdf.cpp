@@ -30,7 +30,35 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-[[noreturn]] void fail(const std::string& msg) { throw std::invalid_argument("URDF: " + msg); }
+// the length of the valid UTF-8 sequence at s[i], 0 if there is none
+size_t utf8_length(const std::string& s, size_t i) {
+  const unsigned char c = static_cast<unsigned char>(s[i]);
+  // continuation bytes after the lead byte c
+  const int n = c < 0x80 ? 0 : (c & 0xE0) == 0xC0 ? 1 : (c & 0xF0) == 0xE0 ? 2 : (c & 0xF8) == 0xF0 ? 3 : -1;
+  bool ok = n >= 0 && i + n < s.size();
+  for (int k = 1; ok && k <= n; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
+  if (ok && n > 0) {
+    const unsigned char d = static_cast<unsigned char>(s[i + 1]);
+    if (n == 1) ok = c >= 0xC2;                                              // overlong
+    if (n == 2) ok = !(c == 0xE0 && d < 0xA0) && !(c == 0xED && d >= 0xA0);  // overlong, surrogates
+    if (n == 3) ok = c <= 0xF4 && !(c == 0xF0 && d < 0x90) && !(c == 0xF4 && d >= 0x90);
+  }
+  return ok ? n + 1 : 0;
+}
+
+// text of the file quoted in a message or warning, each byte that is not
+// valid UTF-8 shown as '?' (Python reads messages as str)
+std::string printable(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_length(s, i);
+    out.append(n ? s.substr(i, n) : std::string("?"));
+    i += n ? n : 1;
+  }
+  return out;
+}
+
+[[noreturn]] void fail(const std::string& msg) { throw std::invalid_argument("URDF: " + printable(msg)); }
 
 // `n` numbers from `text`; errors name `what` (and attribute `attr`, if given),
 // a message built only on failure
@@ -218,21 +246,10 @@ bool one_dof(const std::string& t) {
 
 // a name is read back by Python as str: it must be valid UTF-8
 void check_utf8(const std::string& s, const std::string& what) {
-  size_t i = 0;
-  while (i < s.size()) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    // continuation bytes after the lead byte c
-    const int n = c < 0x80 ? 0 : (c & 0xE0) == 0xC0 ? 1 : (c & 0xF0) == 0xE0 ? 2 : (c & 0xF8) == 0xF0 ? 3 : -1;
-    bool ok = n >= 0 && i + n < s.size();
-    for (int k = 1; ok && k <= n; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
-    if (ok && n > 0) {
-      const unsigned char d = static_cast<unsigned char>(s[i + 1]);
-      if (n == 1) ok = c >= 0xC2;                                           // overlong
-      if (n == 2) ok = !(c == 0xE0 && d < 0xA0) && !(c == 0xED && d >= 0xA0);  // overlong, surrogates
-      if (n == 3) ok = c <= 0xF4 && !(c == 0xF0 && d < 0x90) && !(c == 0xF4 && d >= 0x90);
-    }
-    if (!ok) fail(what + " is not valid UTF-8 (at byte " + std::to_string(i) + ")");
-    i += n + 1;
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_length(s, i);
+    if (!n) fail(what + " is not valid UTF-8 (at byte " + std::to_string(i) + ")");
+    i += n;
   }
 }
 
@@ -298,10 +315,7 @@ struct Reader {
         visit(child, e.body, X_tree, j.name);
       } else if (j.type == "planar") {
         // the plane is normal to the axis: translate along two in-plane axes, rotate about the axis
-        const double s = std::max({std::fabs(j.axis.x), std::fabs(j.axis.y), std::fabs(j.axis.z)});
-        if (!(s > 0)) fail("joint '" + j.name + "' is planar with a zero axis (the plane's normal)");
-        Vec3<double> n = {j.axis.x / s, j.axis.y / s, j.axis.z / s};  // 1/s overflows for a subnormal s
-        n = (1.0 / std::sqrt(dot(n, n))) * n;
+        const Vec3<double> n = unit_axis(j.axis, "joint '" + j.name + "' (planar: the axis is the plane's normal)");
         Vec3<double> e1 = std::fabs(n.x) < 0.9 ? Vec3<double>{1, 0, 0} : Vec3<double>{0, 1, 0};
         e1 = e1 - dot(e1, n) * n;
         e1 = (1.0 / std::sqrt(dot(e1, e1))) * e1;
@@ -413,14 +427,14 @@ Model build(const tinyxml2::XMLDocument& doc, bool floating_base, bool strict, b
   for (const Joint& j : R.joints) {
     if (!j.has_mimic || !mimic) continue;
     if (!R.joint_id.count(j.mimic_joint)) {
-      R.builder.add_warning("joint '" + j.name + "' mimics joint '" + j.mimic_joint +
+      R.builder.add_warning("joint '" + j.name + "' mimics joint '" + printable(j.mimic_joint) +
                             "', which is not defined; it is kept as an independent joint");
       continue;
     }
     const Joint& t = R.joints[R.joint_id.at(j.mimic_joint)];
     if (j.type == "fixed") {
       // a fixed joint has no coordinate to couple (Pinocchio ignores it too)
-      R.builder.add_warning("joint '" + j.name + "' is fixed; its <mimic> of joint '" + j.mimic_joint +
+      R.builder.add_warning("joint '" + j.name + "' is fixed; its <mimic> of joint '" + printable(j.mimic_joint) +
                             "' is ignored");
       continue;
     }

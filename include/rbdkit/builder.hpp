@@ -45,6 +45,11 @@ struct JointSpec {
 // m, h = m c, I = I_com - m [c]²
 Inertia<double> rigid_inertia(double mass, const Vec3<double>& com, const Mat3<double>& I_com);
 
+// the unit vector along a (a joint axis), scaled first so that huge or
+// tiny entries neither overflow nor underflow; std::invalid_argument naming
+// `what` for a zero or non-finite one
+Vec3<double> unit_axis(const Vec3<double>& a, const std::string& what);
+
 class ModelBuilder {
  public:
   explicit ModelBuilder(std::string robot_name = "");

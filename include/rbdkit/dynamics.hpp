@@ -26,11 +26,12 @@
 namespace rbd {
 
 // a workspace in scalar S with its own storage (one per thread), 16-byte
-// aligned; not zero-filled (workspace.hpp), so untouched pages cost nothing
+// aligned; the linear layout is not zero-filled (workspace.hpp), so
+// untouched pages cost nothing
 template <typename S> class WorkspaceBufferT {
  public:
   explicit WorkspaceBufferT(const Model& m, WorkspaceLayout layout = kFullWorkspace)
-      : storage_(new unsigned char[workspace_bytes<S>(m.nb(), m.nv, layout) + 16]), layout_(layout) {
+      : storage_(allocate(workspace_bytes<S>(m.nb(), m.nv, layout) + 16, layout)), layout_(layout) {
     unsigned char* p = storage_.get();
     const auto addr = reinterpret_cast<std::uintptr_t>(p);
     if (addr % 16) p += 16 - addr % 16;
@@ -40,6 +41,13 @@ template <typename S> class WorkspaceBufferT {
   WorkspaceLayout layout() const { return layout_; }
 
  private:
+  // the full layout zero-filled, as it always was (O(nb·nv + nv²) like the
+  // operations that use it); the linear one not: the O(n) family writes
+  // every array before reading it (tests/cpp/test_workspace.cpp poisons it)
+  static unsigned char* allocate(unsigned long bytes, WorkspaceLayout layout) {
+    return layout == kFullWorkspace ? new unsigned char[bytes]() : new unsigned char[bytes];
+  }
+
   std::unique_ptr<unsigned char[]> storage_;
   WorkspaceLayout layout_;
   Workspace<S> ws_;

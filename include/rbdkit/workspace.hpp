@@ -13,8 +13,9 @@
 //                     frame placements, Jacobians and their time variation,
 //                     end-effector poses and their gradients, and the explicit
 //                     integrator steps (integrators.hpp, through aba)
-// The buffer is not zero-filled: every algorithm writes an array before it
-// reads it.
+// A linear buffer need not be zero-filled: the O(n) family writes an array
+// before it reads it (tests/cpp/test_workspace.cpp runs it on poisoned
+// memory); WorkspaceBuffer zero-fills the full one, as it always has.
 #pragma once
 
 #include "joint.hpp"

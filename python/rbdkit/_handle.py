@@ -183,6 +183,7 @@ class Handle:
                        for j in model.joints if j["type"] in ("free", "spherical") and not j["mimic_of"]]
         self._angles = [(j["name"], j["q_index"]) for j in model.joints
                         if j["type"] in ANGLE_JOINTS and not j["mimic_of"]]
+        self._angle_columns = np.array([o for _, o in self._angles], dtype=np.intp)
         # the input bounds of the engine path in this dtype (_checks.py)
         f32 = self.dtype == np.float32
         self._max_input, self._max_angle = (MAX_INPUT_F32, MAX_ANGLE_F32) if f32 else (MAX_INPUT, MAX_ANGLE)
@@ -324,14 +325,15 @@ class Handle:
                              f"{x[s, k]:g} at flat index {flat}")
         if not config:
             return
-        for jname, o in self._angles:
-            off = np.abs(x[:, o]) > self._max_angle
-            if off.any():
-                s = int(np.argmax(off))
-                label = f"{name}[{s}]" if len(x) > 1 else name
-                raise ValueError(f"{label}: the angle of joint '{jname}' (q[{o}]) must have magnitude at most "
-                                 f"{self._max_angle:g} rad (beyond it sin and cos have no precision left), got "
-                                 f"{x[s, o]:g}")
+        cols = self._angle_columns
+        beyond = np.abs(x[:, cols]) > self._max_angle if len(cols) else None
+        if beyond is not None and beyond.any():  # one vectorised test; the joint is found only on failure
+            s, c = np.argwhere(beyond)[0]
+            jname, o = self._angles[c]
+            label = f"{name}[{s}]" if len(x) > 1 else name
+            raise ValueError(f"{label}: the angle of joint '{jname}' (q[{o}]) must have magnitude at most "
+                             f"{self._max_angle:g} rad (beyond it sin and cos have no precision left), got "
+                             f"{x[s, o]:g}")
         for jname, o in self._quats:
             n = np.linalg.norm(x[:, o:o + 4], axis=1)
             off = np.abs(n - 1.0) > 1e-6

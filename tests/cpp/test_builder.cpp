@@ -259,3 +259,19 @@ TEST(Builder, MimicMultipliersAndOffsetsAreBounded) {
   EXPECT_EQ(m.joints[2].multiplier, 4.0);   // q_f2 = -2 q_f1 + 0.5 = 4 q_drive - 1 + 0.5
   EXPECT_EQ(m.joints[2].offset, -0.5);
 }
+
+// a reflection is not a placement, and the algorithms read inertias as symmetric
+TEST(Builder, ReflectionsAndAsymmetricInertiasAreRefused) {
+  ModelBuilder b("t");
+  JointSpec j;
+  j.name = "j1";
+  j.type = "revolute";
+  j.X_parent_joint.R = Mat3<double>::identity();
+  j.X_parent_joint.R(2, 2) = -1;  // orthonormal, det = -1
+  EXPECT_NE(error_of([&] { b.add_body(-1, j, "a"); }).find("is a reflection"), std::string::npos);
+  j.X_parent_joint = Transform<double>::identity();
+  Inertia<double> I = rigid_inertia(1.0, {0, 0, 0}, Mat3<double>::identity());
+  I.I(0, 1) = 0.1;  // I(1, 0) stays 0
+  EXPECT_NE(error_of([&] { b.add_body(-1, j, "a", I); }).find("not symmetric"), std::string::npos);
+  EXPECT_EQ(b.nb(), 0);
+}
