@@ -30,6 +30,7 @@ mj.opt.gravity[2] in the RBD calls); a model whose gravity has x or y parts
 gets a warning.
 """
 
+import contextlib
 import os
 
 import numpy as np
@@ -72,6 +73,15 @@ class _X:
 
     def pair(self):
         return (self.R, self.p)
+
+
+@contextlib.contextmanager
+def _naming(where):
+    """a builder error names the MuJoCo body (and joint) it came from"""
+    try:
+        yield
+    except ValueError as e:
+        raise ValueError(f"mjmodel: {where}: {e}") from e
 
 
 def _unique(name, taken):
@@ -165,8 +175,9 @@ def from_mujoco(m, _stacklevel=4):
             if jtype in (_HINGE, _SLIDE) and m.jnt_limited[j]:
                 lower, upper = (float(x) for x in m.jnt_range[j])
             kw = {} if lower is None else {"lower": lower, "upper": upper}
-            body = b.add_body(int(body), jname, _TYPES[jtype], bn, axis=m.jnt_axis[j] if jtype in (_HINGE, _SLIDE)
-                              else (0.0, 0.0, 1.0), placement=X_joint.pair(), **kw)
+            with _naming(f"body '{bname}', joint '{jname}'"):
+                body = b.add_body(int(body), jname, _TYPES[jtype], bn, axis=m.jnt_axis[j]
+                                  if jtype in (_HINGE, _SLIDE) else (0.0, 0.0, 1.0), placement=X_joint.pair(), **kw)
             if jname not in taken_frames:  # a body of the same name keeps the name
                 b.add_frame(jname, body, kind="joint")
                 taken_frames.add(jname)
@@ -179,8 +190,9 @@ def from_mujoco(m, _stacklevel=4):
         mass = float(m.body_mass[i])
         if mass > 0 or np.any(m.body_inertia[i] != 0):
             X_inertial = X * _X(_quat_wxyz_to_R(m.body_iquat[i]), m.body_ipos[i])
-            b.add_inertia(int(body), mass, inertia=np.asarray(m.body_inertia[i], dtype=np.float64),
-                          placement=X_inertial.pair())
+            with _naming(f"body '{bname}'"):
+                b.add_inertia(int(body), mass, inertia=np.asarray(m.body_inertia[i], dtype=np.float64),
+                              placement=X_inertial.pair())
     for s in range(m.nsite):
         i = int(m.site_bodyid[s])
         sname = _unique(m.site(s).name or f"site{s}", taken_frames)

@@ -357,3 +357,12 @@ def test_bad_input(monkeypatch):
     monkeypatch.setitem(__import__("sys").modules, "mujoco", None)  # mujoco stays optional
     with pytest.raises(ImportError, match="need the mujoco package"):
         rbdkit.Model.from_mujoco(object())
+
+
+def test_builder_errors_name_the_mujoco_body():
+    # MuJoCo's compiler accepts a mass above rbdkit's bound (1e15 kg); the
+    # error names the body it came from
+    xml = """<mujoco><worldbody><body name="heavy"><joint name="hinge" type="hinge"/>
+             <inertial pos="0 0 0" mass="1e20" diaginertia="1 1 1"/></body></worldbody></mujoco>"""
+    with pytest.raises(ValueError, match=r"^mjmodel: body 'heavy'"):
+        rbdkit.Model.from_mujoco(mujoco.MjModel.from_xml_string(xml))
