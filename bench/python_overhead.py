@@ -424,7 +424,27 @@ def section_breakdown(r, opt):
     detail = [dict(what=p[0], us=t * 1e6) for p, t in zip(pieces, times)]
     detail.append(dict(what="C++ rnea alone (RBD.time_per_call: held workspace, no checks)",
                        us=rb.time_per_call("inverse_dynamics", q, qd, qdd, iters=opt.cpp_iters) * 1e6))
-    return dict(robot=r.label, steps=rows, sum_us=sum(x["us"] for x in rows), pieces=detail)
+
+    # the Handle at B = 1: the pieces of Handle._call / _engine_call (python/rbdkit/_handle.py)
+    import inspect
+
+    h = rbdkit.Handle(r.model, threads=1)
+    e = _core.Engine(r.model._core, 1, "float64")
+    sig = inspect.signature(rb.inverse_dynamics)
+    handle_pieces = [
+        ("Handle.inverse_dynamics(Q, QD, QDD), B = 1, whole call", (h.inverse_dynamics, Q, QD, QDD)),
+        ("inspect.signature(RBD.inverse_dynamics) (twice per call)", (inspect.signature, rb.inverse_dynamics)),
+        ("signature.bind(Q, QD, QDD) + apply_defaults", (lambda: sig.bind(Q, QD, QDD).apply_defaults(),)),
+        ("Handle._check_values('q', Q, config=True)", (lambda: h._check_values("q", Q, config=True),)),
+        ("Handle._check_values('qd', QD)", (h._check_values, "qd", QD)),
+        ("Handle._engine_array(Q) (np.require)", (h._engine_array, Q)),
+        ("_core.Engine.inverse_dynamics, B = 1, prepared arrays", (e.inverse_dynamics, Q, QD, QDD, GRAVITY,
+                                                                   outs[0])),
+    ]
+    times = best_times([make_timer(*p[1]) for p in handle_pieces], opt.repeats, opt.min_time)
+    handle_detail = [dict(what=p[0], us=t * 1e6) for p, t in zip(handle_pieces, times)]
+    return dict(robot=r.label, steps=rows, sum_us=sum(x["us"] for x in rows), pieces=detail,
+                handle_pieces=handle_detail)
 
 
 def section_cprofile(r, n=2000):
@@ -501,6 +521,9 @@ def print_report(res):
         print(f"| sum of the steps | {bd['sum_us']:.2f} |\n")
         print("| piece (timeit) | µs |\n|---|---:|")
         for x in bd["pieces"]:
+            print(f"| {x['what']} | {x['us']:.2f} |")
+        print("\n| Handle piece (timeit) | µs |\n|---|---:|")
+        for x in bd["handle_pieces"]:
             print(f"| {x['what']} | {x['us']:.2f} |")
     if "cprofile" in res:
         for name, rows in res["cprofile"].items():

@@ -58,5 +58,5 @@ def test_quick_run_writes_the_report(tmp_path):
 
     bd = res["breakdown"]
     assert len(bd["steps"]) == 10 and math.isclose(bd["sum_us"], sum(s["us"] for s in bd["steps"]), rel_tol=1e-9)
-    assert all(isinstance(p["us"], float) and p["us"] > 0 for p in bd["pieces"])
+    assert all(isinstance(p["us"], float) and p["us"] > 0 for p in bd["pieces"] + bd["handle_pieces"])
     assert set(res["cprofile"]) == {"rbd.inverse_dynamics", "Handle.inverse_dynamics B=1"}
