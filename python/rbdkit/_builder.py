@@ -185,7 +185,9 @@ class ModelBuilder:
         by the joint. axis: the direction of a 1-DoF joint in the joint frame.
         mass, com, inertia: the body's own inertia (com in the body frame,
         inertia about the com in body axes). lower/upper: position limits of
-        a revolute, prismatic or helical joint; velocity/effort: limits on
+        a revolute, prismatic or helical joint (lower > upper is an error
+        here; the URDF reader keeps such a file's numbers with a warning, as
+        Pinocchio does); velocity/effort: limits on
         each DoF. pitch: metres per radian of a helical joint. Returns the
         body index."""
         for n, s in (("joint_name", joint_name), ("joint_type", joint_type), ("body_name", body_name)):
