@@ -10,7 +10,6 @@
 #include "rbdkit/builder.hpp"
 
 #include <cmath>
-#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -219,25 +218,37 @@ Model ModelBuilder::build() {
     mult[i] = c.multiplier;
     offs[i] = c.offset;
   }
-  std::vector<int> root(m.bodies.size(), -1);
-  for (size_t i = 0; i < m.bodies.size(); ++i) {
-    if (direct[i] < 0) continue;
-    double mu = 1, off = 0;
+  // each mimic joint resolved once, q_j = mu_j·q_root + off_j: follow its
+  // chain to a joint that owns its coordinate or one already resolved, then
+  // compose back along the chain (O(n) in all; state 1: on the current chain)
+  const size_t n = m.bodies.size();
+  std::vector<int> root(n, -1), state(n, 0), chain;
+  std::vector<double> mu(n, 1.0), off(n, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    if (direct[i] < 0 || state[i] == 2) continue;
+    chain.clear();
     int cur = static_cast<int>(i);
-    std::set<int> visited;
-    while (direct[cur] >= 0) {
-      if (!visited.insert(cur).second) fail("mimic joints form a cycle through joint '" + m.joints[cur].name + "'");
-      off += mu * offs[cur];  // q_cur = mult_cur·q_next + offs_cur
-      mu *= mult[cur];
+    while (direct[cur] >= 0 && state[cur] != 2) {
+      if (state[cur] == 1) fail("mimic joints form a cycle through joint '" + m.joints[cur].name + "'");
+      state[cur] = 1;
+      chain.push_back(cur);
       cur = direct[cur];
     }
-    if (std::fabs(mu) > kMaxLength || std::fabs(off) > kMaxLength)
-      fail("mimic joint '" + m.joints[i].name + "' follows '" + m.joints[cur].name + "' through a chain whose " +
-           "multiplier " + num(mu) + " or offset " + num(off) + " exceeds " + num(kMaxLength) + " in magnitude");
-    root[i] = cur;
-    m.joints[i].mimic_of = m.joints[cur].name;
-    m.joints[i].multiplier = mu;
-    m.joints[i].offset = off;
+    const bool owns = direct[cur] < 0;
+    const int r = owns ? cur : root[cur];
+    double M = owns ? 1.0 : mu[cur], O = owns ? 0.0 : off[cur];
+    for (auto it = chain.rbegin(); it != chain.rend(); ++it) {
+      const int j = *it;
+      O = mult[j] * O + offs[j];  // q_j = mult_j·q_next + offs_j, q_next = M·q_r + O
+      M = mult[j] * M;
+      if (std::fabs(M) > kMaxLength || std::fabs(O) > kMaxLength)
+        fail("mimic joint '" + m.joints[j].name + "' follows '" + m.joints[r].name + "' through a chain whose " +
+             "multiplier " + num(M) + " or offset " + num(O) + " exceeds " + num(kMaxLength) + " in magnitude");
+      root[j] = r, mu[j] = M, off[j] = O, state[j] = 2;
+      m.joints[j].mimic_of = m.joints[r].name;
+      m.joints[j].multiplier = M;
+      m.joints[j].offset = O;
+    }
   }
 
   // 2. coordinates and limits, in body order

@@ -275,3 +275,25 @@ TEST(Builder, ReflectionsAndAsymmetricInertiasAreRefused) {
   EXPECT_NE(error_of([&] { b.add_body(-1, j, "a", I); }).find("not symmetric"), std::string::npos);
   EXPECT_EQ(b.nb(), 0);
 }
+
+// a long mimic chain (each joint follows the one before) resolves in one pass:
+// joint k follows joint 0 with multiplier (-1)^k and offset 0.001·(k mod 2)
+TEST(Builder, LongMimicChainsResolveToTheirRoot) {
+  ModelBuilder b("t");
+  const int n = 20000;
+  int parent = -1;
+  for (int k = 0; k < n; ++k) {
+    JointSpec j;
+    j.name = "j" + std::to_string(k);
+    j.type = "revolute";
+    parent = b.add_body(parent, j, "l" + std::to_string(k), rigid_inertia(1.0, {0, 0, 0}, Mat3<double>::identity()));
+  }
+  for (int k = n - 1; k >= 1; --k) b.add_mimic("j" + std::to_string(k), "j" + std::to_string(k - 1), -1.0, 0.001);
+  const Model m = b.build();
+  EXPECT_EQ(m.nv, 1);
+  for (int k = 1; k < n; ++k) {
+    ASSERT_EQ(m.joints[k].mimic_of, "j0") << k;
+    ASSERT_EQ(m.joints[k].multiplier, k % 2 ? -1.0 : 1.0) << k;
+    ASSERT_NEAR(m.joints[k].offset, k % 2 ? 0.001 : 0.0, 1e-15) << k;
+  }
+}
