@@ -178,14 +178,8 @@ Inertia<double> parse_inertial(const tinyxml2::XMLElement* link, const std::stri
   if (ev.minCoeff() < -1e-12 * scale) doubt("with a negative principal moment; it is not positive semi-definite");
   else if (ev(2) > ev(0) + ev(1) + 1e-10 * std::fabs(E.trace()))
     doubt("that violates the triangle inequality (the largest principal moment exceeds the sum of the other two)");
-  // rotate to the link frame and move to its origin: I_o = R Ic Rᵀ - m [c]²
-  const Vec3<double> c = X.p;
-  const Mat3<double> C = skew(c);
-  Inertia<double> I;
-  I.m = mass;
-  I.h = mass * c;
-  I.I = X.R * Ic * transpose(X.R) - mass * (C * C);
-  return I;
+  // rotated to the link frame, moved to its origin: I_o = R Ic Rᵀ - m [c]²
+  return rigid_inertia(mass, X.p, X.R * Ic * transpose(X.R));
 }
 
 Joint parse_joint(const tinyxml2::XMLElement* e) {
