@@ -32,10 +32,8 @@ Sections:
              per knot point, the 2-thread speed-up (target ≥ 1.8×) and the
              ratio to Pinocchio's rneaInParallel / abaInParallel (OpenMP,
              a ModelPool) with the same threads (target ≤ 0.25×).
-  breakdown  where one rbd.inverse_dynamics(q, qd, qdd) call spends its time
-             (iiwa): the steps of RBD.inverse_dynamics (python/rbdkit/_rbd.py
-             and _checks.py at the time of writing) timed one by one with
-             perf_counter_ns, the binding and the C++ algorithm alone.
+  breakdown  one rbd.inverse_dynamics(q, qd, qdd) call (iiwa) against the
+             C++ kernel alone and the CPython / NumPy primitives it uses.
 
 Timing: timeit loops (the garbage collector off) of prepared arguments,
 `number` calls per repeat chosen for ~--min-time seconds, the best of
@@ -339,112 +337,29 @@ def section_threads(robots, opt):
 
 # ---------------------------------------------------------------- breakdown of one call
 def section_breakdown(r, opt):
-    """µs per step of rbd.inverse_dynamics(q, qd, qdd): the method's steps
-    (as written in _rbd.py / _checks.py) timed in sequence with
-    perf_counter_ns (the cost of one clock read subtracted), then pieces of
-    them and the binding alone with timeit"""
-    from rbdkit._checks import Batch, as_real_array, check_scalar
-
+    """µs of one rbd.inverse_dynamics(q, qd, qdd) call and of its parts: the
+    compiled callable (python/src/bind_ops.cpp: argument parsing, array
+    checks, output allocation, C++ value checks, the kernel), the C++ kernel
+    alone, and reference costs of the CPython and NumPy primitives it uses"""
     rb, q, qd, qdd = r.rbd, r.q, r.qd, r.qdd
-    nq, nv, nb = rb.nq, rb.nv, rb.nb
-    clock = time.perf_counter_ns
-    steps = ("Batch()", "_q(q): add", "_v(qd): add", "_v(qdd): add", "_fext(None)", "check_scalar(gravity)",
-             "4 outputs: Batch.out (np.empty)", "3 inputs: Batch.get (broadcast_to + ascontiguousarray)",
-             "_core.inverse_dynamics (binding + C++)", "4 results: Batch.ret + tuple")
-
-    def one():
-        t = [clock()]
-        b = Batch()
-        t.append(clock())
-        iq = rb._q(b, q)
-        t.append(clock())
-        iv = rb._v(b, qd, "qd")
-        t.append(clock())
-        ia = rb._v(b, qdd, "qdd")
-        t.append(clock())
-        ifx = rb._fext(b, None)
-        t.append(clock())
-        g = check_scalar(GRAVITY, "gravity")
-        t.append(clock())
-        tau, v, a, f = b.out(nv), b.out(nb, 6), b.out(nb, 6), b.out(nb, 6)
-        t.append(clock())
-        Q, QD, QDD = b.get(iq), b.get(iv), b.get(ia)
-        t.append(clock())
-        _core.inverse_dynamics(rb._m, Q, QD, QDD, ifx, g, tau, v, a, f)
-        t.append(clock())
-        res = b.ret(tau), b.ret(v), b.ret(a), b.ret(f)
-        t.append(clock())
-        return t, res
-
-    # the replica computes what the method computes
-    checked("breakdown replica", one()[1][0], rb.inverse_dynamics(q, qd, qdd)[0])
-    n = max(200, int(opt.min_time * 2e5))
-    gc.disable()
-    try:
-        # the clock's own cost, per read
-        c0 = clock()
-        for _ in range(n):
-            clock()
-        per_read = (clock() - c0) / n
-        best = [math.inf] * len(steps)
-        for _ in range(opt.repeats):
-            sums = [0] * len(steps)
-            for _ in range(n):
-                t, _ = one()
-                for k in range(len(steps)):
-                    sums[k] += t[k + 1] - t[k]
-            best = [min(bk, s / n - per_read) for bk, s in zip(best, sums)]
-    finally:
-        gc.enable()
-    rows = [dict(step=s, us=b / 1e3) for s, b in zip(steps, best)]
-
-    # pieces, one timeit each
+    nv = rb.nv
+    h = rbdkit.Handle(r.model, threads=1)
     Q, QD, QDD = (np.ascontiguousarray(x[None]) for x in (q, qd, qdd))
-    outs = (np.empty((1, nv)), np.empty((1, nb, 6)), np.empty((1, nb, 6)), np.empty((1, nb, 6)))
-    b = Batch()
-    view = np.broadcast_to(q, (1, nq))
     pieces = [
-        ("rbd.inverse_dynamics(q, qd, qdd), whole call", (rb.inverse_dynamics, q, qd, qdd)),
-        ("as_real_array(q) (np.asarray + dtype checks + astype)", (as_real_array, q, "q")),
-        ("Batch().add(q) (as_real_array + shape check + message strings)",
-         (lambda: Batch().add(q, "q", (nq,), ("nq",)),)),
-        ("Batch() alone", (Batch,)),
-        ("np.broadcast_to(q, (1, nq))", (np.broadcast_to, q, (1, nq))),
-        ("np.ascontiguousarray(view, float64)", (np.ascontiguousarray, view, np.float64)),
-        ("np.empty((1, nv))", (np.empty, (1, nv))),
-        ("check_scalar(gravity)", (check_scalar, GRAVITY, "gravity")),
-        ("b.ret(tau)", (b.ret, outs[0])),
-        ("_core.inverse_dynamics, prepared arrays, with per-body v, a, f", (_core.inverse_dynamics, rb._m, Q, QD, QDD,
-                                                                          None, GRAVITY, *outs)),
-        ("_core.inverse_dynamics, prepared arrays, tau only", (_core.inverse_dynamics, rb._m, Q, QD, QDD, None,
-                                                               GRAVITY, outs[0], None, None, None)),
-        ("_core.Model.nq (a nanobind attribute read, for scale)", (getattr, rb._m, "nq")),
+        ("rbd.inverse_dynamics(q, qd, qdd), whole call (tau and per-body v, a, f)", (rb.inverse_dynamics, q, qd, qdd)),
+        ("rbd.inverse_dynamics(q=q, qd=qd, qdd=qdd), by keyword", (lambda: rb.inverse_dynamics(q=q, qd=qd, qdd=qdd),)),
+        ("rbd.inverse_dynamics(list q, list qd, list qdd): converted", (rb.inverse_dynamics, list(q), list(qd),
+                                                                        list(qdd))),
+        ("Handle.inverse_dynamics(Q, QD, QDD), B = 1, whole call (tau only)", (h.inverse_dynamics, Q, QD, QDD)),
+        ("rbd.integrate(q, qd), whole call", (rb.integrate, q, qd)),
+        ("np.empty((nv,)): one output allocation, for scale", (np.empty, (nv,))),
+        ("len(q): a call of a C function, for scale", (len, q)),
     ]
     times = best_times([make_timer(*p[1]) for p in pieces], opt.repeats, opt.min_time)
     detail = [dict(what=p[0], us=t * 1e6) for p, t in zip(pieces, times)]
     detail.append(dict(what="C++ rnea alone (RBD.time_per_call: held workspace, no checks)",
                        us=rb.time_per_call("inverse_dynamics", q, qd, qdd, iters=opt.cpp_iters) * 1e6))
-
-    # the Handle at B = 1: the pieces of Handle._call / _engine_call (python/rbdkit/_handle.py)
-    import inspect
-
-    h = rbdkit.Handle(r.model, threads=1)
-    e = _core.Engine(r.model._core, 1, "float64")
-    sig = inspect.signature(rb.inverse_dynamics)
-    handle_pieces = [
-        ("Handle.inverse_dynamics(Q, QD, QDD), B = 1, whole call", (h.inverse_dynamics, Q, QD, QDD)),
-        ("inspect.signature(RBD.inverse_dynamics) (twice per call)", (inspect.signature, rb.inverse_dynamics)),
-        ("signature.bind(Q, QD, QDD) + apply_defaults", (lambda: sig.bind(Q, QD, QDD).apply_defaults(),)),
-        ("Handle._check_values('q', Q, config=True)", (lambda: h._check_values("q", Q, config=True),)),
-        ("Handle._check_values('qd', QD)", (h._check_values, "qd", QD)),
-        ("Handle._engine_array(Q) (np.require)", (h._engine_array, Q)),
-        ("_core.Engine.inverse_dynamics, B = 1, prepared arrays", (e.inverse_dynamics, Q, QD, QDD, GRAVITY,
-                                                                   outs[0])),
-    ]
-    times = best_times([make_timer(*p[1]) for p in handle_pieces], opt.repeats, opt.min_time)
-    handle_detail = [dict(what=p[0], us=t * 1e6) for p, t in zip(handle_pieces, times)]
-    return dict(robot=r.label, steps=rows, sum_us=sum(x["us"] for x in rows), pieces=detail,
-                handle_pieces=handle_detail)
+    return dict(robot=r.label, pieces=detail)
 
 
 def section_cprofile(r, n=2000):
@@ -515,15 +430,8 @@ def print_report(res):
     if "breakdown" in res:
         bd = res["breakdown"]
         print(f"\n## Where one rbd.inverse_dynamics(q, qd, qdd) goes ({bd['robot']}, µs)\n")
-        print("| step | µs |\n|---|---:|")
-        for x in bd["steps"]:
-            print(f"| {x['step']} | {x['us']:.2f} |")
-        print(f"| sum of the steps | {bd['sum_us']:.2f} |\n")
         print("| piece (timeit) | µs |\n|---|---:|")
         for x in bd["pieces"]:
-            print(f"| {x['what']} | {x['us']:.2f} |")
-        print("\n| Handle piece (timeit) | µs |\n|---|---:|")
-        for x in bd["handle_pieces"]:
             print(f"| {x['what']} | {x['us']:.2f} |")
     if "cprofile" in res:
         for name, rows in res["cprofile"].items():

@@ -21,6 +21,8 @@
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/integrators.hpp"
 #include "rbdkit/dynamics.hpp"
+#include "rbdkit/ops/registry.hpp"
+#include "rbdkit/ops/table.hpp"
 #include "rbdkit/simd.hpp"
 
 #ifndef RBDKIT_ENGINE_W64
@@ -152,10 +154,13 @@ struct Engine::Impl {
 
 namespace {
 
-// a row-major batch array: w values per sample; null: absent
+// a row-major batch array: w values per sample, `stride` values from one
+// sample to the next (w, or 0 for one sample broadcast over the batch); null: absent
 template <typename T> struct In {
   const T* p;
   long w;
+  long stride;
+  In(const T* p_ = nullptr, long w_ = 0, long stride_ = -1) : p(p_), w(w_), stride(stride_ < 0 ? w_ : stride_) {}
 };
 template <typename T> struct Out {
   T* p;
@@ -165,7 +170,7 @@ template <typename T> struct Out {
 template <typename T> struct EngineT : Engine::Impl {
   static constexpr int W = Width<T>::value;
   using P = Pack<T, W>;
-  static constexpr int kMaxArgs = 4;
+  static constexpr int kMaxArgs = ops::kMaxArgs;
 
   std::vector<BodyDesc<P>> bodies;
   ModelView<P> mv;
@@ -196,8 +201,8 @@ template <typename T> struct EngineT : Engine::Impl {
     static void call(void* self, int t) { static_cast<Job*>(self)->work(t); }
     void work(int t) {
       ThreadBuffer<P>& buf = e->buffers[t];
-      P* ins[kMaxArgs] = {nullptr, nullptr, nullptr, nullptr};
-      P* outs[kMaxArgs] = {nullptr, nullptr, nullptr, nullptr};
+      P* ins[kMaxArgs] = {};
+      P* outs[kMaxArgs] = {};
       P* v = buf.values();
       for (int i = 0; i < nin; ++i)
         if (in[i].p) ins[i] = v, v += in[i].w;
@@ -213,7 +218,7 @@ template <typename T> struct EngineT : Engine::Impl {
           if (!in[i].p) continue;
           const long w = in[i].w;
           for (int l = 0; l < W; ++l) {
-            const T* src = in[i].p + (s0 + std::min(l, valid - 1)) * w;
+            const T* src = in[i].p + (s0 + std::min(l, valid - 1)) * in[i].stride;
             for (long k = 0; k < w; ++k) ins[i][k].v[l] = src[k];
           }
         }
@@ -239,6 +244,13 @@ template <typename T> struct EngineT : Engine::Impl {
   template <typename K>
   void run(const char* what, long B, std::initializer_list<In<T>> ins, std::initializer_list<Out<T>> outs,
            long scratch, const K& kernel, WorkspaceLayout layout = kFullWorkspace) {
+    run(what, B, ins.begin(), static_cast<int>(ins.size()), outs.begin(), static_cast<int>(outs.size()), scratch,
+        kernel, layout);
+  }
+  // the same on arrays; `failure`: the registered operation (its OpFailure names a failed sample's error)
+  template <typename K>
+  void run(const char* what, long B, const In<T>* ins, int nin, const Out<T>* outs, int nout, long scratch,
+           const K& kernel, WorkspaceLayout layout, const ops::OpSpec* failure = nullptr) {
     if (B <= 0) {
       std::ostringstream os;
       os << what << ": B: expected a positive batch size, got " << B;
@@ -250,13 +262,11 @@ template <typename T> struct EngineT : Engine::Impl {
     job.B = B;
     job.packs = (B + W - 1) / W;
     job.active = static_cast<int>(std::min<long>(threads, job.packs));
-    job.nin = static_cast<int>(ins.size());
-    job.nout = static_cast<int>(outs.size());
+    job.nin = nin;
+    job.nout = nout;
     long values = scratch;
-    int i = 0;
-    for (const In<T>& a : ins) job.in[i++] = a, values += a.p ? a.w : 0;
-    i = 0;
-    for (const Out<T>& a : outs) job.out[i++] = a, values += a.p ? a.w : 0;
+    for (int i = 0; i < nin; ++i) job.in[i] = ins[i], values += ins[i].p ? ins[i].w : 0;
+    for (int i = 0; i < nout; ++i) job.out[i] = outs[i], values += outs[i].p ? outs[i].w : 0;
     job.scratch = scratch;
     job.kernel = &kernel;
     for (int t = 0; t < job.active; ++t) buffers[t].reserve(model.nb(), model.nv, values, layout);
@@ -266,8 +276,12 @@ template <typename T> struct EngineT : Engine::Impl {
       // name the joint: the first sample of the failed pack (q: the first input) where one is singular
       std::vector<double> qs(model.nq);
       for (long s = f; s < std::min(B, f + W); ++s) {
-        for (int k = 0; k < model.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s * model.nq + k]);
+        for (int k = 0; k < model.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s * job.in[0].stride + k]);
         if (singular_joint(model, qs.data()) >= 0) throw_not_positive_definite(model, what, qs.data(), s);
+      }
+      if (failure) {
+        for (int k = 0; k < model.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[f * job.in[0].stride + k]);
+        ops::throw_failure(model, *failure, qs.data(), f);
       }
       std::ostringstream os;
       os << what << ": the mass matrix (or a joint's articulated inertia) is not positive definite, or a stage "
@@ -314,6 +328,44 @@ template <typename T> void check_dt(const char* what, T dt) {
     os << what << ": dt: expected a positive finite time step of at most " << kMaxTimeStep << " s, got " << dt;
     throw std::invalid_argument(os.str());
   }
+}
+
+
+// ---- the registered operations (ops/registry.hpp): one route per operation,
+// generated from ops::AllOps in its order
+template <typename T> using OpRoute = void (*)(EngineT<T>&, const ops::OpCall&);
+
+template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCall& c) {
+  using P = typename EngineT<T>::P;
+  const ops::OpSpec& op = Op::spec;
+  const Model& m = e.model;
+  // arrays in argument order (a parameter holds an empty slot), outputs in order
+  In<T> ins[ops::kMaxArgs];
+  Out<T> outs[ops::kMaxOutputs];
+  ops::OpArgs<P> base{};
+  for (int k = 0; k < op.n_args; ++k) {
+    const long w = ops::arg_values(op.args[k], m);
+    if (op.args[k].kind == ops::kArray || op.args[k].kind == ops::kOptionalArray)
+      ins[k] = In<T>(static_cast<const T*>(c.in[k]), c.in[k] ? w : 0, c.batched[k] ? w : 0);
+    base.real[k] = P(static_cast<T>(c.real[k]));
+    base.choice[k] = c.choice[k];
+  }
+  for (int o = 0; o < op.n_out; ++o) outs[o] = {static_cast<T*>(c.out[o]), ops::out_values(op.out[o], m)};
+  auto kernel = [&base, &op](const ModelView<P>& mv, Workspace<P>& w, P* const* in, P* const* out,
+                             P* scratch) RBD_ENGINE_KERNEL {
+    ops::OpArgs<P> a = base;
+    for (int k = 0; k < op.n_args; ++k) a.in[k] = in[k];
+    for (int o = 0; o < op.n_out; ++o) a.out[o] = out[o];
+    a.scratch = scratch;
+    return Op::run(mv, w, a);
+  };
+  e.run(op.name, c.B, ins, op.n_args, outs, op.n_out, ops::scratch_values(op, m), kernel, ops::workspace_layout(op, m),
+        &op);
+}
+
+template <typename T, typename... Op> const OpRoute<T>* op_routes(ops::OpList<Op...>) {
+  static const OpRoute<T> routes[] = {&op_route<T, Op>...};
+  return routes;
 }
 
 }  // namespace
@@ -454,6 +506,18 @@ void Engine::integrator_gradient(long B, const T* q, const T* qd, const T* u, T 
   };
   e.run("integrator_gradient", B, {{q, nq}, {qd, nv}, {u, nv}}, {{x, nq + nv}, {AB, 6L * nv * nv}},
         integrator_gradient_scratch_values(nq, nv), k);
+}
+
+void Engine::run_op(int op, const ops::OpCall& call) {
+  if (op < 0 || op >= ops::AllOps::size) throw std::invalid_argument("run_op: unknown operation id " + std::to_string(op));
+  const char* what = ops::op_table()[op].spec->name;
+  if (call.B <= 0) {
+    std::ostringstream os;
+    os << what << ": B: expected a positive batch size, got " << call.B;
+    throw std::invalid_argument(os.str());
+  }
+  if (impl_->dtype == "float64") op_routes<double>(ops::AllOps{})[op](impl_as<double>(impl_.get(), what), call);
+  else op_routes<float>(ops::AllOps{})[op](impl_as<float>(impl_.get(), what), call);
 }
 
 #define RBD_ENGINE_INSTANTIATE(T)                                                                              \

@@ -8,13 +8,16 @@
 #include "rbdkit/costs_api.hpp"
 #include "rbdkit/derivatives_api.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/ops/table.hpp"
 
 namespace rbd {
 
-const std::vector<AlgorithmInfo>& handle_algorithms() {
-  // name, operations (rbdkit.RBD method names), dependencies; a dependency
-  // always comes earlier in the table than the algorithms needing it
-  static const std::vector<AlgorithmInfo> table = {
+namespace {
+// the algorithms: name, operations (rbdkit.RBD method names; the registered
+// ones are added from the registry, by their spec's algorithm), dependencies;
+// a dependency always comes earlier in the table than the algorithms needing it
+std::vector<AlgorithmInfo> algorithm_list() {
+  std::vector<AlgorithmInfo> table = {
       {"configuration", {"integrate", "difference", "dIntegrate", "dDifference", "d2Integrate"}, {}},
       {"inverse_dynamics",
        {"inverse_dynamics", "generalized_gravity", "nonlinear_effects", "apply_external_forces",
@@ -66,6 +69,17 @@ const std::vector<AlgorithmInfo>& handle_algorithms() {
         "mujoco_difference"},
        {}},
   };
+  for (const ops::OpEntry& e : ops::op_table())
+    for (AlgorithmInfo& a : table)
+      if (a.name == e.spec->algorithm &&
+          std::find(a.operations.begin(), a.operations.end(), e.spec->name) == a.operations.end())
+        a.operations.push_back(e.spec->name);
+  return table;
+}
+}  // namespace
+
+const std::vector<AlgorithmInfo>& handle_algorithms() {
+  static const std::vector<AlgorithmInfo> table = algorithm_list();
   return table;
 }
 
@@ -112,19 +126,51 @@ std::string algorithm_of(const std::string& operation) {
 }
 
 Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads)
-    : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)) {
+    : Handle(std::move(model), algorithms, threads, "float64") {}
+
+Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype)
+    : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)), threads_(threads), dtype_(dtype) {
   if (threads < 0)
     throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
                                 std::to_string(threads));
-  if (threads > 0) engine_.reset(new Engine(model_, threads, "float64"));
+  if (dtype != "float64" && dtype != "float32")
+    throw std::invalid_argument("dtype: expected 'float64' or 'float32', got '" + dtype + "'");
+  if (threads > 0 || dtype == "float32") engine_.reset(new Engine(model_, threads > 0 ? threads : 1, dtype));
   for (const std::string& n : algorithms_)
     for (const std::string& op : find_algorithm(n)->operations) operations_.push_back(op);
+  op_enabled_.assign(ops::op_table().size(), false);
+  for (const ops::OpEntry& e : ops::op_table())
+    op_enabled_[e.id] = std::find(operations_.begin(), operations_.end(), e.spec->name) != operations_.end();
 }
 
 std::vector<std::string> Handle::available_operations() const { return operations_; }
 
 bool Handle::has(const std::string& operation) const {
-  return std::find(operations_.begin(), operations_.end(), operation) != operations_.end();
+  // the typed methods below that are not registered operations
+  static const char* methods[] = {"quadratic_state_cost", "quadratic_state_cost_tangent", "quadratic_input_cost",
+                                  "ee_pos_cost", "com_cost", "momentum_cost", "joint_position_barrier",
+                                  "joint_velocity_barrier", "joint_torque_barrier", "plant_step_hessian"};
+  if (std::find(operations_.begin(), operations_.end(), operation) == operations_.end()) return false;
+  if (ops::find_op(operation) >= 0) return true;
+  return std::find(std::begin(methods), std::end(methods), operation) != std::end(methods);
+}
+
+void Handle::run(int op, const ops::OpCall& call) {
+  if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
+    throw std::invalid_argument("run: unknown operation id " + std::to_string(op));
+  const ops::OpEntry& e = ops::op_table()[op];
+  if (!has_op(op)) require(e.spec->name);
+  if (call.B <= 0)
+    throw std::invalid_argument(std::string(e.spec->name) + ": B: expected a positive batch size, got " +
+                                std::to_string(call.B));
+  if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
+  else ops::check_call<double>(model_, *e.spec, call);
+  if (model_.nb() == 0) return;  // no joints: every output is empty
+  if (engine_) return engine_->run_op(op, call);
+  std::lock_guard<std::mutex> lk(run_);
+  const long n = ops::scratch_values(*e.spec, model_);
+  if (static_cast<long>(op_scratch_.size()) < n) op_scratch_.resize(static_cast<size_t>(n));
+  ops::run_serial(model_, e, call, ws_.get(model_, ops::workspace_layout(*e.spec, model_)), op_scratch_.data());
 }
 
 void Handle::require(const char* operation) const {
@@ -146,7 +192,7 @@ void Handle::check_inputs(long B, const double* q, const double* qd, const char*
 void Handle::inverse_dynamics(long B, const double* q, const double* qd, const double* qdd, const double* fext,
                               double gravity, double* tau) {
   require("inverse_dynamics");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", qdd, "qdd");
     check_finite(&gravity, 1, "gravity");
     return engine_->inverse_dynamics<double>(B, q, qd, qdd, gravity, tau);
@@ -157,20 +203,20 @@ void Handle::inverse_dynamics(long B, const double* q, const double* qd, const d
 
 void Handle::crba(long B, const double* q, double* M) {
   require("crba");
-  if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->crba<double>(B, q, M);
+  if (engine64()) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->crba<double>(B, q, M);
   batch::crba(model_, B, q, M, &ws_.get(model_, kFullWorkspace));
 }
 
 void Handle::minv(long B, const double* q, double* Minv) {
   require("minv");
-  if (engine_) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->minv<double>(B, q, Minv);
+  if (engine64()) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->minv<double>(B, q, Minv);
   batch::minv(model_, B, q, true, Minv, &ws_.get(model_, kFullWorkspace));
 }
 
 void Handle::aba(long B, const double* q, const double* qd, const double* tau, const double* fext, double gravity,
                  double* qdd) {
   require("aba");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", tau, "tau");
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
@@ -181,7 +227,7 @@ void Handle::aba(long B, const double* q, const double* qd, const double* tau, c
 void Handle::forward_dynamics(long B, const double* q, const double* qd, const double* tau, const double* fext,
                               double gravity, double* qdd) {
   require("forward_dynamics");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", tau, "tau");
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
@@ -194,7 +240,7 @@ void Handle::forward_dynamics(long B, const double* q, const double* qd, const d
 void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd, const double* qdd,
                                        const double* fext, double gravity, double* dtau_dq, double* dtau_dqd) {
   require("inverse_dynamics_gradient");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", qdd, "qdd");
     check_finite(&gravity, 1, "gravity");
     return engine_->inverse_dynamics_gradient<double>(B, q, qd, qdd, gravity, dtau_dq, dtau_dqd);
@@ -213,7 +259,7 @@ void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd
 void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd, const double* tau,
                                        const double* fext, double gravity, double* dqdd_dq, double* dqdd_dqd) {
   require("forward_dynamics_gradient");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", tau, "tau");
     check_finite(&gravity, 1, "gravity");
     return engine_->forward_dynamics_gradient<double>(B, q, qd, tau, gravity, dqdd_dq, dqdd_dqd);
@@ -227,7 +273,7 @@ void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd
 void Handle::integrator(long B, const double* q, const double* qd, const double* u, const double* fext, double dt,
                         double gravity, int type, double* x_next) {
   require("integrator");
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", u, "u");
     check_finite(&gravity, 1, "gravity");
     return engine_->integrator<double>(B, q, qd, u, dt, gravity, type, x_next);
@@ -243,7 +289,7 @@ void Handle::integrator_gradient(long B, const double* q, const double* qd, cons
     x.resize(static_cast<size_t>(B * (model_.nq + model_.nv)));
     x_next = x.data();
   }
-  if (engine_ && !fext) {
+  if (engine64() && !fext) {
     check_inputs(B, q, qd, "qd", u, "u");
     check_finite(&gravity, 1, "gravity");
     return engine_->integrator_gradient<double>(B, q, qd, u, dt, gravity, type, x_next, AB);

@@ -101,6 +101,9 @@ class WorkspaceCache {
 constexpr double kMaxInput = 1e100;    // |q| (positions), |qd|, |qdd|, |tau|, |u|, |f_ext|, |gravity|, ...
 constexpr double kMaxAngle = 1e12;     // |q| of revolute and helical joints (rad)
 constexpr double kMaxTimeStep = 1e6;   // dt (s) of the integrators and the solver
+// the same bounds for float32 computations (float32's range and spacing)
+constexpr double kMaxInputF32 = 1e15;
+constexpr double kMaxAngleF32 = 1e4;
 // finite values of magnitude at most kMaxInput
 void check_finite(const double* x, long n, const char* arg);
 // finite values (kMaxInput, kMaxAngle for the angles of revolute and helical

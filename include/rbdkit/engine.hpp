@@ -37,6 +37,7 @@
 #include <string>
 
 #include "model.hpp"
+#include "ops/table.hpp"
 
 namespace rbd {
 
@@ -76,6 +77,13 @@ class Engine {
   void integrator(long B, const T* q, const T* qd, const T* u, T dt, T gravity, int type, T* x);
   template <typename T>
   void integrator_gradient(long B, const T* q, const T* qd, const T* u, T dt, T gravity, int type, T* x, T* AB);
+
+  // a registered operation (ops/registry.hpp, id: its index in ops::AllOps)
+  // on call.B samples in the engine's dtype: the arrays of `call` hold T =
+  // double ("float64") or float ("float32") values. No input is checked here
+  // (ops::check_call); a failed sample and non-finite outputs throw as the
+  // methods above do.
+  void run_op(int op, const ops::OpCall& call);
 
   struct Impl;
 

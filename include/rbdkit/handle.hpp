@@ -29,6 +29,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -61,14 +62,28 @@ class Handle {
   // algorithms: names from handle_algorithms(); empty = every algorithm;
   // threads: 0 (no engine) or the engine's thread count (negative: error)
   explicit Handle(Model model, const std::vector<std::string>& algorithms = {}, int threads = 0);
+  // dtype "float64" or "float32"; a float32 handle computes the registered
+  // operations on the engine (one thread when threads = 0)
+  Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype);
 
   const Model& model() const { return model_; }
-  int threads() const { return engine_ ? engine_->threads() : 0; }
+  int threads() const { return threads_; }
+  const std::string& dtype() const { return dtype_; }
   // the resolved algorithm list (the requested ones and their dependencies)
   const std::vector<std::string>& algorithms() const { return algorithms_; }
-  // the operations this handle provides, in table order
+  // the operations this handle's algorithms provide, in table order (the
+  // Python rbdkit.Handle offers all of them)
   std::vector<std::string> available_operations() const;
+  // whether C++ can call `operation` on this handle: a method below or a
+  // registered operation, provided by the handle's algorithms
   bool has(const std::string& operation) const;
+
+  // ---- registered operations (ops/registry.hpp), by id, on call.B samples
+  // whose arrays hold the handle's dtype: the values are checked
+  // (ops::check_call), then the engine (threads > 0 or float32) or the
+  // serial loop on the calling thread runs them. The Python bindings call this.
+  void run(int op, const ops::OpCall& call);
+  bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
 
   // ---- dynamics
   // tau (B x nv); qdd, fext may be null
@@ -145,8 +160,15 @@ class Handle {
   Model model_;
   std::vector<std::string> algorithms_;
   std::vector<std::string> operations_;
+  std::vector<bool> op_enabled_;  // per registered operation: provided by the algorithms
+  int threads_ = 0;
+  std::string dtype_ = "float64";
   WorkspaceCache ws_;  // linear until an O(n²) operation runs
-  std::unique_ptr<Engine> engine_;  // null when threads = 0
+  std::vector<double> op_scratch_;  // the serial loop's scratch
+  std::mutex run_;  // one run() at a time (the workspace is shared)
+  std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64)
+  // the engine for the typed float64 methods (null on a float32 handle)
+  Engine* engine64() const { return dtype_ == "float64" ? engine_.get() : nullptr; }
   // the engine's input checks (the batch:: entry points check their own)
   void check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,
                     const char* w_name) const;

@@ -20,30 +20,6 @@ class DerivativesMixin:
     def _cols(self, b, x, name):
         return b.add(x, name, (self.nb, 6, 6), ("nb", "6", "6"))
 
-    def inverse_dynamics_gradient(self, q, qd, qdd=None, gravity=GRAVITY, f_ext=None):
-        """[∂c/∂q | ∂c/∂qd] (nv, 2·nv) of c = inverse_dynamics(q, qd, qdd)[0]."""
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        ia = None if qdd is None else self._v(b, qdd, "qdd")
-        ifx = self._fext(b, f_ext)
-        g = check_scalar(gravity, "gravity")
-        out = b.out(self.nv, 2 * self.nv)
-        _core.inverse_dynamics_gradient(self._m, b.get(iq), b.get(iv), None if ia is None else b.get(ia),
-                                        None if ifx is None else b.get(ifx), g, out)
-        return b.ret(out)
-
-    def forward_dynamics_gradient(self, q, qd, u, f_ext=None, gravity=GRAVITY):
-        """(∂qdd/∂q, ∂qdd/∂qd), each (nv, nv), of qdd = forward_dynamics(q, qd, u):
-        -M⁻¹ ∂ID/∂(q, qd) at the forward-dynamics acceleration."""
-        b = Batch()
-        iq, iv, iu = self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u")
-        ifx = self._fext(b, f_ext)
-        g = check_scalar(gravity, "gravity")
-        dq, dv, qdd = b.out(self.nv, self.nv), b.out(self.nv, self.nv), b.out(self.nv)
-        _core.forward_dynamics_gradient(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx),
-                                        g, dq, dv, qdd)
-        return b.ret(dq), b.ret(dv)
-
     def f_ext_gradient(self, q):
         """(∂c/∂f_ext, ∂qdd/∂f_ext), each (nb, nv, 6): per body b, -J_bᵀ and
         M⁻¹ J_bᵀ with J_b the body's Jacobian in its own frame (f_ext is

@@ -38,35 +38,6 @@ class IntegratorsMixin:
     def _step_args(self, b, q, qd, u, f_ext):
         return self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u"), self._fext(b, f_ext)
 
-    def integrator(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
-                   output_convention="pinocchio"):
-        """x⁺ = [q⁺; qd⁺] (nq + nv,) after one step of length dt with constant
-        controls u and body-local external forces f_ext."""
-        t = integrator_code(integrator_type)
-        cv = convention_code(output_convention)
-        dt, g = check_dt(dt), check_scalar(gravity, "gravity")
-        b = Batch()
-        iq, iv, iu, ifx = self._step_args(b, q, qd, u, f_ext)
-        x = b.out(self.nq + self.nv)
-        _core.integrator(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx), dt, g, t, x,
-                         cv)
-        return b.ret(x)
-
-    def integrator_gradient(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
-                            output_convention="pinocchio"):
-        """[A | B] = ∂x⁺/∂(x, u) (2·nv, 3·nv) in the tangent space: rows
-        [δq⁺; δqd⁺], columns [δq | δqd | δu] (δq through integrate, or
-        MuJoCo's mj_integratePos with output_convention="mujoco")."""
-        t = integrator_code(integrator_type)
-        cv = convention_code(output_convention)
-        dt, g = check_dt(dt), check_scalar(gravity, "gravity")
-        b = Batch()
-        iq, iv, iu, ifx = self._step_args(b, q, qd, u, f_ext)
-        x, AB = b.out(self.nq + self.nv), b.out(2 * self.nv, 3 * self.nv)
-        _core.integrator_gradient(self._m, b.get(iq), b.get(iv), b.get(iu), None if ifx is None else b.get(ifx), dt,
-                                  g, t, x, AB, cv)
-        return b.ret(AB)
-
     # ---- the plant layer's state form, x = [q; qd]
     def _split_state(self, x, name="x"):
         """(q, qd) views of x (nq + nv,) or (B, nq + nv)"""
@@ -74,18 +45,6 @@ class IntegratorsMixin:
         ix = b.add(x, name, (self.nq + self.nv,), ("nq+nv",))
         X = b.ret(b.get(ix))
         return X[..., :self.nq], X[..., self.nq:]
-
-    def plant_step(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
-                   output_convention="pinocchio"):
-        """x⁺ (nq + nv,) for x = [q; qd] (nq + nv,)."""
-        q, qd = self._split_state(x)
-        return self.integrator(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
-
-    def plant_step_gradient(self, x, u, dt, integrator_type="euler", f_ext=None, gravity=GRAVITY,
-                            output_convention="pinocchio"):
-        """[A | B] (2·nv, 3·nv) of plant_step, tangent space."""
-        q, qd = self._split_state(x)
-        return self.integrator_gradient(q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
 
     def plant_step_hessian(self, x, u, dt, integrator_type="euler", gravity=GRAVITY, output_convention="pinocchio"):
         """H (2·nv, 3·nv, 3·nv): the second-order sensitivity of plant_step.

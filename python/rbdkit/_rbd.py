@@ -4,7 +4,16 @@ Shapes: q (nq,), qd/qdd/tau/u (nv,), per-body 6D quantities (nb, 6) in the
 body frame as [linear; angular]; each may carry a leading batch axis B, and
 unbatched arguments are broadcast against batched ones. Results carry the
 batch axis when any argument did.
+
+The registered operations (include/rbdkit/ops/registry.hpp: inverse and
+forward dynamics, M, M⁻¹, their gradients, the Lie-group operations, the
+integrators and the plant step) are generated from the C++ registry: each
+instance holds one compiled callable per operation, which parses, checks
+and allocates in C++ (python/src/bind_ops.cpp). The class attributes of the
+same names carry their signatures and documentation.
 """
+
+import inspect
 
 import numpy as np
 
@@ -33,6 +42,14 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
         self.model = model
         self._m = model._core
         self.nq, self.nv, self.nb = model.nq, model.nv, model.nb
+        # the registered operations: compiled callables (instance attributes
+        # shadow the class's generic methods, not a subclass's override)
+        self._ops = _core.OpHandle(model._core, [], 0, "float64")
+        self._compiled = {name: self._ops.op(name, False) for name in _GENERIC}
+        cls = type(self)
+        for name, generic in _GENERIC.items():
+            if getattr(cls, name) is generic:
+                self.__dict__[name] = self._compiled[name]
 
     # ---- argument helpers
     def _q(self, b, q, name="q"):
@@ -47,60 +64,6 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
         return b.add(f_ext, name, (self.nb, 6), ("nb", "6"))
 
     # ---- dynamics
-    def inverse_dynamics(self, q, qd, qdd=None, gravity=GRAVITY, f_ext=None):
-        """RNEA. Returns (c, v, a, f): joint forces c (nv,) = M qdd + C qd + g
-        - Σ Jᵀ f_ext, and per body (nb, 6): velocity v, acceleration a (gravity
-        not included) and the force f transmitted by its joint (body frame)."""
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        ia = None if qdd is None else self._v(b, qdd, "qdd")
-        ifx = self._fext(b, f_ext)
-        g = check_scalar(gravity, "gravity")
-        tau, v, a, f = b.out(self.nv), b.out(self.nb, 6), b.out(self.nb, 6), b.out(self.nb, 6)
-        _core.inverse_dynamics(self._m, b.get(iq), b.get(iv), None if ia is None else b.get(ia),
-                               None if ifx is None else b.get(ifx), g, tau, v, a, f)
-        return b.ret(tau), b.ret(v), b.ret(a), b.ret(f)
-
-    def aba(self, q, qd, tau, f_ext=None, gravity=GRAVITY):
-        """Forward dynamics by the articulated-body algorithm: qdd (nv,)."""
-        b = Batch()
-        iq, iv, it = self._q(b, q), self._v(b, qd, "qd"), self._v(b, tau, "tau")
-        ifx = self._fext(b, f_ext)
-        g = check_scalar(gravity, "gravity")
-        qdd = b.out(self.nv)
-        _core.aba(self._m, b.get(iq), b.get(iv), b.get(it), None if ifx is None else b.get(ifx), g, qdd)
-        return b.ret(qdd)
-
-    def forward_dynamics(self, q, qd, u, f_ext=None, gravity=GRAVITY):
-        """Forward dynamics through the inverse mass matrix: M⁻¹ (u - c)."""
-        b = Batch()
-        iq, iv, it = self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u")
-        ifx = self._fext(b, f_ext)
-        g = check_scalar(gravity, "gravity")
-        qdd = b.out(self.nv)
-        _core.forward_dynamics(self._m, b.get(iq), b.get(iv), b.get(it), None if ifx is None else b.get(ifx), g,
-                               qdd)
-        return b.ret(qdd)
-
-    def crba(self, q):
-        """Joint-space mass matrix M (nv, nv) by the composite rigid-body algorithm."""
-        b = Batch()
-        iq = self._q(b, q)
-        M = b.out(self.nv, self.nv)
-        _core.crba(self._m, b.get(iq), M)
-        return b.ret(M)
-
-    def minv(self, q, output_dense=True):
-        """M⁻¹ (nv, nv) computed directly in O(n²) (not by factorising M).
-        output_dense=False returns the upper triangle (zeros below)."""
-        if not isinstance(output_dense, (bool, np.bool_)):
-            raise TypeError(f"output_dense: expected a bool, got {type(output_dense).__name__}")
-        b = Batch()
-        iq = self._q(b, q)
-        Mi = b.out(self.nv, self.nv)
-        _core.minv(self._m, b.get(iq), bool(output_dense), Mi)
-        return b.ret(Mi)
-
     def apply_external_forces(self, f_in, f_ext):
         """f_in - f_ext per body, both (nb, 6) in body frames: the net body
         forces once the external forces are taken away."""
@@ -112,56 +75,7 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
             check_values(f, name)
         return b.ret(f1 - f2)
 
-    def generalized_gravity(self, q, gravity=GRAVITY):
-        """g(q) (nv,): the joint forces that hold the robot still."""
-        b = Batch()
-        iq = self._q(b, q)
-        g = check_scalar(gravity, "gravity")
-        tau = b.out(self.nv)
-        _core.inverse_dynamics(self._m, b.get(iq), np.zeros((b.size, self.nv)), None, None, g, tau, None, None, None)
-        return b.ret(tau)
-
-    def nonlinear_effects(self, q, qd, gravity=GRAVITY):
-        """c(q, qd) = C(q, qd) qd + g(q) (nv,)."""
-        return self.inverse_dynamics(q, qd, None, gravity)[0]
-
     # ---- configuration space (Lie-group operations)
-    def integrate(self, q, v):
-        """q ⊕ v (nq,): SE(3) exponential on a free-flyer joint (twist in the
-        local frame), SO(3) on spherical joints, q + v elsewhere."""
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, v, "v")
-        out = b.out(self.nq)
-        _core.integrate(self._m, b.get(iq), b.get(iv), out)
-        return b.ret(out)
-
-    def difference(self, q0, q1):
-        """q1 ⊖ q0 (nv,): the tangent step v with integrate(q0, v) = q1."""
-        b = Batch()
-        i0, i1 = self._q(b, q0, "q0"), self._q(b, q1, "q1")
-        out = b.out(self.nv)
-        _core.difference(self._m, b.get(i0), b.get(i1), out)
-        return b.ret(out)
-
-    def dIntegrate(self, q, v, with_respect_to="q"):
-        """Tangent Jacobian (nv, nv) of integrate(q, v) with respect to 'q' or 'v'."""
-        arg = check_choice(with_respect_to, "with_respect_to", ("q", "v"))
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, v, "v")
-        J = b.out(self.nv, self.nv)
-        _core.dintegrate(self._m, b.get(iq), b.get(iv), arg, J)
-        return b.ret(J)
-
-    def dDifference(self, q0, q1, with_respect_to="to"):
-        """Tangent Jacobian (nv, nv) of difference(q0, q1) with respect to
-        'from' (q0) or 'to' (q1)."""
-        arg = check_choice(with_respect_to, "with_respect_to", ("from", "to"))
-        b = Batch()
-        i0, i1 = self._q(b, q0, "q0"), self._q(b, q1, "q1")
-        J = b.out(self.nv, self.nv)
-        _core.ddifference(self._m, b.get(i0), b.get(i1), arg, J)
-        return b.ret(J)
-
     def d2Integrate(self, q, v, arg1="v", arg2="v"):
         """Second derivative of integrate: H (nv, nv, nv) with
         H[i, j, k] = ∂ dIntegrate(q, v, arg1)[i, j] / ∂x_k, x = arg2 ('q':
@@ -194,3 +108,31 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
 
     def __repr__(self):
         return f"<rbdkit.RBD of {self.model!r}>"
+
+
+# ---- the registered operations' class attributes: signature and doc from
+# the registry; a call goes to the instance's compiled callable
+REGISTERED = tuple(op[0] for op in _core.registered_operations())
+_NO_DEFAULT = ("array", "dt")
+
+
+def _registered_method(name, doc, args):
+    def method(self, *a, **k):
+        return self._compiled[name](*a, **k)
+
+    P = inspect.Parameter
+    params = [P("self", P.POSITIONAL_OR_KEYWORD)]
+    params += [P(arg, P.POSITIONAL_OR_KEYWORD, default=P.empty if kind in _NO_DEFAULT else default)
+               for arg, kind, default in args]
+    method.__name__ = name
+    method.__qualname__ = f"RBD.{name}"
+    method.__doc__ = doc.split("\n\n", 1)[-1]
+    method.__signature__ = inspect.Signature(params)
+    return method
+
+
+_GENERIC = {}  # name -> the class attribute
+for _name, _alg, _family, _doc, _args in _core.registered_operations():
+    _GENERIC[_name] = _registered_method(_name, _doc, _args)
+    setattr(RBD, _name, _GENERIC[_name])
+del _name, _alg, _family, _doc, _args

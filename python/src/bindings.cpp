@@ -39,6 +39,7 @@ void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
 void bind_engine(nb::module_& m);  // bind_engine.cpp
 void bind_builder(nb::module_& m);  // bind_builder.cpp
+void bind_ops(nb::module_& m);  // bind_ops.cpp
 
 
 namespace {
@@ -219,4 +220,5 @@ NB_MODULE(_core, m) {
   bind_solver(m);
   bind_engine(m);
   bind_builder(m);
+  bind_ops(m);
 }

@@ -12,7 +12,10 @@ import pytest
 
 import rbdkit
 from rbdkit import _core, _handle
-from rbdkit._handle import ALGORITHMS, ENGINE_ROUTES, OPERATIONS, OPERATION_ALGORITHM
+from rbdkit._handle import ALGORITHMS, OPERATIONS, OPERATION_ALGORITHM
+
+# the operations of the C++ registry (include/rbdkit/ops/registry.hpp)
+REGISTERED = [op[0] for op in _core.registered_operations()]
 from rbdkit._integrators import INTEGRATORS
 from test_bad_input import METHODS as BAD_INPUT_METHODS, bad_shapes, valid_args
 
@@ -324,14 +327,12 @@ def bad_input_call(obj, method, args):
     return getattr(obj, method)(**args)
 
 
-@pytest.mark.parametrize("engine", ["none", "fake"])
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("method,arg", BAD_INPUT_CASES, ids=[f"{m}-{a}" for m, a in BAD_INPUT_CASES])
-def test_bad_arrays_as_rbd(monkeypatch, hyq, engine, method, arg):
+def test_bad_arrays_as_rbd(hyq, threads, method, arg):
     # the bad-input suite's shapes and values give the RBD method's errors,
-    # whether the handle routes the call to the engine or not
-    if engine == "fake":
-        monkeypatch.setattr(_core, "Engine", FakeEngine, raising=False)
-    h, rbd = rbdkit.Handle(hyq, threads=2), rbdkit.RBD(hyq)
+    # whether the handle's engine runs the call or RBD's serial loop does
+    h, rbd = rbdkit.Handle(hyq, threads=threads), rbdkit.RBD(hyq)
     cases = []
     for shape in bad_shapes(hyq, arg)[:3]:
         args = valid_args(hyq, method)
@@ -354,11 +355,9 @@ def test_bad_arrays_as_rbd(monkeypatch, hyq, engine, method, arg):
         same_error(lambda: bad_input_call(h, method, args), lambda: bad_input_call(rbd, method, args))
 
 
-@pytest.mark.parametrize("engine", ["none", "fake"])
-def test_bad_options_as_rbd(monkeypatch, hyq, engine):
-    if engine == "fake":
-        monkeypatch.setattr(_core, "Engine", FakeEngine, raising=False)
-    h, rbd = rbdkit.Handle(hyq), rbdkit.RBD(hyq)
+@pytest.mark.parametrize("threads", [1, 2])
+def test_bad_options_as_rbd(hyq, threads):
+    h, rbd = rbdkit.Handle(hyq, threads=threads), rbdkit.RBD(hyq)
     v = values(hyq)
     for kw in ({"integrator_type": "rk3"}, {"integrator_type": 3}, {"dt": 0.0}, {"dt": np.nan}, {"gravity": "g"},
                {"gravity": np.inf}):
@@ -405,140 +404,73 @@ def test_mujoco_convention_handle_equals_rbd(hyq):
         h.aba(qpos, qvel, u)
 
 
-def test_output_convention_passed_through(hyq, monkeypatch):
-    # a method that takes output_convention (as the integrators and costs do
-    # once the MuJoCo convention lands) receives the handle's
-    monkeypatch.setattr(_core, "Engine", FakeEngine, raising=False)
+def test_output_convention_passed_through(hyq):
+    # a method that takes output_convention (as the integrators and costs do)
+    # receives the handle's; a per-call keyword wins. A subclass's method is
+    # called (the compiled callables do not shadow an override).
     seen = []
 
     class R(rbdkit.RBD):
         def integrator(self, q, qd, u, dt, integrator_type="euler", f_ext=None, gravity=-9.81,
                        output_convention="pinocchio"):
             seen.append(output_convention)
-            return super().integrator(q, qd, u, dt, integrator_type, f_ext, gravity)
+            return rbdkit.RBD.integrator(self, q, qd, u, dt, integrator_type, f_ext, gravity, output_convention)
 
     v = values(hyq)
-    for conv in ("mujoco", "pinocchio"):
-        h = rbdkit.Handle(hyq, output_convention=conv)
-        h.rbd = R(hyq)
-        h._engine.calls.clear()
-        h.integrator(v["q"], v["qd"], v["u"], 0.01)
-        h.integrator(v["q"], v["qd"], v["u"], 0.01, output_convention="pinocchio")  # a per-call keyword wins
-        # the mujoco convention never goes to the engine
-        assert [c[0] for c in h._engine.calls] == (["integrator"] if conv == "mujoco" else ["integrator"] * 2)
-    assert seen == ["mujoco"]
+    h = rbdkit.Handle(hyq, output_convention="mujoco")
+    h.rbd = R(hyq)
+    ref = rbdkit.RBD(hyq)
+    assert_same(h.integrator(v["q"], v["qd"], v["u"], 0.01), ref.integrator(v["q"], v["qd"], v["u"], 0.01,
+                                                                              output_convention="mujoco"))
+    assert_same(h.integrator(v["q"], v["qd"], v["u"], 0.01, output_convention="pinocchio"),
+                ref.integrator(v["q"], v["qd"], v["u"], 0.01))
+    assert seen == ["mujoco", "pinocchio"]
+    # the Pinocchio convention runs the compiled callable of the C++ handle
+    hp = rbdkit.Handle(hyq, output_convention="pinocchio")
+    assert type(hp.integrator).__name__ == "Operation"
+    assert_same(hp.integrator(v["q"], v["qd"], v["u"], 0.01), ref.integrator(v["q"], v["qd"], v["u"], 0.01),
+                rtol=1e-12)
 
 
-# ------------------------------------------------------------ engine routing (a fake engine)
-
-
-class FakeEngine:
-    """_core.Engine's interface (batch on axis 0, C-contiguous arrays of the
-    engine dtype, outputs passed in), computed by rbdkit.RBD in float64;
-    records (method, threads, dtype) per call"""
-
-    def __init__(self, model, threads, dtype):
-        assert isinstance(model, _core.Model)
-        assert isinstance(threads, int) and threads > 0 and dtype in ("float64", "float32")
-        m = object.__new__(rbdkit.Model)
-        m._core = model
-        self.rbd, self.nv, self.threads, self.dtype, self.calls = rbdkit.RBD(m), model.nv, threads, dtype, []
-
-    def _log(self, name, arrays, scalars=()):
-        for a in arrays:
-            assert isinstance(a, np.ndarray) and a.dtype == self.dtype and a.flags.c_contiguous, name
-            assert a.flags.writeable, name  # the engine binding takes writable arrays only
-            assert a.shape[0] == arrays[0].shape[0], name
-        for s in scalars:
-            assert type(s) in (float, int), name
-        self.calls.append((name, arrays[0].shape[0], self.dtype))
-
-    def inverse_dynamics(self, q, qd, qdd, gravity, tau):
-        self._log("inverse_dynamics", (q, qd, qdd, tau), (gravity,))
-        tau[...] = self.rbd.inverse_dynamics(q, qd, qdd, gravity)[0]
-
-    def crba(self, q, M):
-        self._log("crba", (q, M))
-        M[...] = self.rbd.crba(q)
-
-    def minv(self, q, Minv):
-        self._log("minv", (q, Minv))
-        Minv[...] = self.rbd.minv(q)
-
-    def forward_dynamics(self, q, qd, tau, gravity, qdd):
-        self._log("forward_dynamics", (q, qd, tau, qdd), (gravity,))
-        qdd[...] = self.rbd.aba(q, qd, tau, gravity=gravity)
-
-    def inverse_dynamics_gradient(self, q, qd, qdd, gravity, dq, dqd):
-        self._log("inverse_dynamics_gradient", (q, qd, qdd, dq, dqd), (gravity,))
-        G = self.rbd.inverse_dynamics_gradient(q, qd, qdd, gravity)
-        dq[...], dqd[...] = G[..., :self.nv], G[..., self.nv:]
-
-    def forward_dynamics_gradient(self, q, qd, tau, gravity, dq, dqd):
-        self._log("forward_dynamics_gradient", (q, qd, tau, dq, dqd), (gravity,))
-        dq[...], dqd[...] = self.rbd.forward_dynamics_gradient(q, qd, tau, gravity=gravity)
-
-    def integrator(self, q, qd, u, dt, gravity, type, x):
-        self._log("integrator", (q, qd, u, x), (dt, gravity, type))
-        x[...] = self.rbd.integrator(q, qd, u, dt, INTEGRATORS[type], gravity=gravity)
-
-    def integrator_gradient(self, q, qd, u, dt, gravity, type, x, AB):
-        self._log("integrator_gradient", (q, qd, u, x, AB), (dt, gravity, type))
-        x[...] = self.rbd.integrator(q, qd, u, dt, INTEGRATORS[type], gravity=gravity)
-        AB[...] = self.rbd.integrator_gradient(q, qd, u, dt, INTEGRATORS[type], gravity=gravity)
-
-
-@pytest.fixture
-def fake_engine(monkeypatch):
-    monkeypatch.setattr(_core, "Engine", FakeEngine, raising=False)
+# ------------------------------------------------------------ the registered operations in C++
 
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
-@pytest.mark.parametrize("op", list(ENGINE_ROUTES))
-def test_fast_operations_go_to_the_engine(fake_engine, hyq, op, dtype):
+@pytest.mark.parametrize("op", REGISTERED)
+def test_registered_operations_run_in_cpp(hyq, op, dtype):
+    # the C++ handle's callable, in the handle's dtype with its threads, batched and one sample
     h, rbd = rbdkit.Handle(hyq, dtype=dtype, threads=2), rbdkit.RBD(hyq)
-    assert h._engine.threads == 2 and h._engine.dtype == dtype
+    assert h._core.threads == 2 and h._core.dtype == dtype
     assert op in h.fast_operations()
-    engine_method = ENGINE_ROUTES[op][0]
+    assert type(getattr(h, op)).__name__ == "Operation"
     for batch in (B, None):
         v = values(hyq) if batch else one_sample(values(hyq))
-        h._engine.calls.clear()
         r = call(h, op, v)
-        assert h._engine.calls == [(engine_method, batch or 1, dtype)]
         ref = handle_result(op, call(rbd, op, v))
         flat, flat_ref = (r, ref) if isinstance(r, tuple) else ((r,), (ref,))
         for a, b in zip(flat, flat_ref):
             assert a.dtype == np.dtype(dtype) and a.shape == b.shape
             scale = max(1.0, float(np.max(np.abs(b))))
-            # float32: the engine's float32 inputs and outputs (the fake computes in float64)
             assert np.max(np.abs(a - b)) <= (1e-10 if dtype == "float64" else 1e-4) * scale, op
 
 
-def test_what_does_not_go_to_the_engine(fake_engine, hyq):
-    h = rbdkit.Handle(hyq)
+def test_f_ext_and_options_run_in_cpp(hyq):
+    # f_ext and output_dense=False go to the same callables; com is not registered
+    h, rbd = rbdkit.Handle(hyq, threads=2), rbdkit.RBD(hyq)
     v = values(hyq)
-    cases = [
-        ("inverse_dynamics", lambda: h.inverse_dynamics(v["q"], v["qd"], v["qdd"], f_ext=v["f_ext"])),
-        ("aba", lambda: h.aba(v["q"], v["qd"], v["tau"], f_ext=v["f_ext"])),
-        ("integrator", lambda: h.integrator(v["q"], v["qd"], v["u"], 0.01, "rk4", f_ext=v["f_ext"])),
-        ("minv", lambda: h.minv(v["q"], output_dense=False)),
-        ("com", lambda: h.com(v["q"])),
-    ]
-    for name, f in cases:
-        h._engine.calls.clear()
-        f()
-        assert h._engine.calls == [], name
-    # f_ext=[] means none: the engine takes it
-    h._engine.calls.clear()
-    h.aba(v["q"], v["qd"], v["tau"], f_ext=[])
-    assert [c[0] for c in h._engine.calls] == ["forward_dynamics"]
-    # a handle with the MuJoCo convention on a floating base keeps the fast ops off the engine
+    assert_same(h.inverse_dynamics(v["q"], v["qd"], v["qdd"], f_ext=v["f_ext"]),
+                rbd.inverse_dynamics(v["q"], v["qd"], v["qdd"], f_ext=v["f_ext"])[0], rtol=1e-10)
+    assert_same(h.aba(v["q"], v["qd"], v["tau"], f_ext=v["f_ext"]), rbd.aba(v["q"], v["qd"], v["tau"], f_ext=v["f_ext"]),
+                rtol=1e-10)
+    assert_same(h.integrator(v["q"], v["qd"], v["u"], 0.01, "rk4", f_ext=v["f_ext"]),
+                rbd.integrator(v["q"], v["qd"], v["u"], 0.01, "rk4", f_ext=v["f_ext"]), rtol=1e-10)
+    assert_same(h.minv(v["q"], output_dense=False), rbd.minv(v["q"], output_dense=False), rtol=1e-10)
+    assert_same(h.aba(v["q"], v["qd"], v["tau"], f_ext=[]), rbd.aba(v["q"], v["qd"], v["tau"]), rtol=1e-10)
+    assert "com" not in h.fast_operations()
+    # a handle with the MuJoCo convention on a floating base keeps the registered ops on RBD's path
     assert rbdkit.Handle(hyq, output_convention="mujoco").fast_operations() == []
 
 
-def test_no_engine_in_this_build_means_no_fast_path(hyq):
+def test_every_registered_operation_is_fast(hyq):
     h = rbdkit.Handle(hyq)
-    if hasattr(_core, "Engine"):
-        assert h.engine_available() and set(h.fast_operations()) == set(ENGINE_ROUTES)
-    else:
-        assert not h.engine_available() and h.fast_operations() == []
+    assert set(h.fast_operations()) == set(REGISTERED) and h.engine_available()

@@ -1,0 +1,155 @@
+// rbdkit/ops/op.hpp — how an operation is described: its arguments (arrays
+// and parameters, in the order a caller passes them), their per-sample shapes
+// as functions of the model's sizes, their value checks, its outputs, its
+// workspace and scratch, and the per-sample call its kernel receives.
+// Host/device: plain data and one Scalar-templated struct.
+//
+// An operation is a struct with
+//   static constexpr OpSpec spec = {...};       // the description below
+//   template <typename S> RBD_HD static bool run(const ModelView<S>&, Workspace<S>&, const OpArgs<S>&);
+// listed in ops/registry.hpp. Every surface (the checked serial loop, the
+// batch engine, the handle, the Python bindings) is generated from the list:
+// see docs/adding-an-operation.md.
+#pragma once
+
+#include "../config.hpp"
+
+namespace rbd {
+namespace ops {
+
+constexpr int kMaxArgs = 10;    // arguments (arrays and parameters) of one operation
+constexpr int kMaxOutputs = 4;  // outputs of one operation
+constexpr int kMaxRank = 3;     // dimensions of one sample of an array
+
+// one dimension of a per-sample shape: a literal size (> 0) or a size of the model
+enum Dim : int {
+  kNq = -1,   // configuration coordinates
+  kNv = -2,   // velocity coordinates
+  kNb = -3,   // bodies
+  kNx = -4,   // nq + nv (a state x = [q; qd])
+  k2Nv = -5,  // 2 nv (tangent state)
+  k3Nv = -6,  // 3 nv (tangent state and input)
+};
+
+// the per-sample shape of an array: rank 0..kMaxRank
+struct Shape {
+  int rank;
+  int d[kMaxRank];
+};
+constexpr Shape shape(int a) { return {1, {a, 0, 0}}; }
+constexpr Shape shape(int a, int b) { return {2, {a, b, 0}}; }
+constexpr Shape shape(int a, int b, int c) { return {3, {a, b, c}}; }
+
+// the extent of a dimension on a model of sizes (nq, nv, nb)
+RBD_HD constexpr long extent(int d, int nq, int nv, int nb) {
+  return d > 0 ? d
+       : d == kNq ? nq
+       : d == kNv ? nv
+       : d == kNb ? nb
+       : d == kNx ? nq + nv
+       : d == k2Nv ? 2L * nv
+       : d == k3Nv ? 3L * nv
+       : 0;
+}
+RBD_HD constexpr long values_of(const Shape& s, int nq, int nv, int nb) {
+  long n = 1;
+  for (int k = 0; k < s.rank; ++k) n *= extent(s.d[k], nq, nv, nb);
+  return n;
+}
+
+// what an argument is
+enum ArgKind : unsigned char {
+  kArray,          // an array (required)
+  kOptionalArray,  // an array or nothing (None / null: the kernel gets a null pointer)
+  kReal,           // a finite real number (default: `value`; NaN: required)
+  kTimeStep,       // 0 < dt <= kMaxTimeStep (required)
+  kFlag,           // a bool (default: value != 0)
+  kChoice,         // one of `choices` by name (default index: `value`)
+  kIntegrator,     // an integrator by name (integrator_from_name; default index: `value`)
+  kConvention,     // an output convention by name (convention_from_name; default index: `value`)
+};
+
+// the value checks of an array, one pass over its values
+enum ValueCheck : unsigned char {
+  kFiniteValues,   // finite, magnitude at most kMaxInput
+  kConfiguration,  // a configuration: finite, angles at most kMaxAngle, unit quaternions (in the op's
+                   // convention when it has a kConvention parameter)
+};
+
+struct ArgSpec {
+  const char* name;
+  ArgKind kind;
+  Shape shape;                 // arrays
+  ValueCheck check;            // arrays
+  double value;                // parameters: the default
+  const char* const* choices;  // kChoice: the names, null-terminated
+};
+
+constexpr ArgSpec array(const char* name, Shape s, ValueCheck c = kFiniteValues) {
+  return {name, kArray, s, c, 0, nullptr};
+}
+constexpr ArgSpec optional_array(const char* name, Shape s, ValueCheck c = kFiniteValues) {
+  return {name, kOptionalArray, s, c, 0, nullptr};
+}
+constexpr ArgSpec real(const char* name, double def) { return {name, kReal, {0, {0, 0, 0}}, kFiniteValues, def, nullptr}; }
+constexpr ArgSpec param(const char* name, ArgKind kind, double def = 0, const char* const* choices = nullptr) {
+  return {name, kind, {0, {0, 0, 0}}, kFiniteValues, def, choices};
+}
+
+struct OutSpec {
+  const char* name;
+  Shape shape;
+};
+
+// the workspace an operation needs (workspace.hpp)
+enum OpWorkspace : unsigned char {
+  kLinear,            // the O(nb + nv) arrays
+  kLinearUnlessMimic, // linear, full on a model with mimic joints (aba's dense path)
+  kFull,              // every array
+};
+
+// what a kernel returning false means
+enum OpFailure : unsigned char {
+  kNotPositiveDefinite,  // a mass matrix (or articulated inertia) that is not PD: names the joint
+  kStepFailed,           // an integrator step: a joint that moves no mass, or a stage that overflowed
+};
+
+// the scratch values (of the kernel's scalar) one sample needs
+enum OpScratch : unsigned char {
+  kNoScratch,
+  kScratchNv,              // nv
+  kScratch2NvNv,           // 2 nv²
+  kScratchIntegrator,      // integrator_scratch_values(nq, nv)
+  kScratchIntegratorGrad,  // integrator_gradient_scratch_values(nq, nv)
+};
+
+struct OpSpec {
+  const char* name;       // the operation (the rbdkit.RBD method)
+  const char* algorithm;  // the handle algorithm providing it (handle.hpp's table)
+  const char* family;     // the algorithm family (its header under algorithms/)
+  const char* doc;        // one paragraph: what it computes, shapes
+  int n_args;
+  ArgSpec args[kMaxArgs];  // in call order
+  int n_out;
+  OutSpec out[kMaxOutputs];
+  unsigned returns;         // rbdkit.RBD returns these outputs (bit k: output k); one bit: the array alone
+  unsigned handle_returns;  // rbdkit.Handle returns these (0: as `returns`)
+  OpWorkspace workspace;
+  OpScratch scratch;
+  OpFailure failure;
+};
+
+// one sample's call, indexed by argument (the spec's order): an array's
+// values in `in` (null where an optional one is absent), a real parameter in
+// `real`, a flag or a choice in `choice`; the outputs (null where not
+// requested) and the scratch
+template <typename S> struct OpArgs {
+  const S* in[kMaxArgs];
+  S real[kMaxArgs];
+  int choice[kMaxArgs];
+  S* out[kMaxOutputs];
+  S* scratch;
+};
+
+}  // namespace ops
+}  // namespace rbd

@@ -1,0 +1,298 @@
+// rbdkit/ops/registry.hpp — the operation registry: every operation that the
+// generated surfaces call, each described once (ops/op.hpp) with its
+// per-sample kernel, and the list they are generated from (OpList below).
+// Host/device: the kernels are Scalar-templated and run on double (the
+// checked serial loop), on Pack<T, W> lanes (the batch engine, float64 and
+// float32) and, through the same headers, on a CUDA thread.
+//
+// Generated from OpList, in its order (an operation's index is its id):
+//   ops::op_table()        the runtime table (ops/table.hpp, src/ops.cpp)
+//   Engine::run_op          the engine's routes (src/engine.cpp)
+//   Handle::run             checks, the serial loop or the engine (src/handle.cpp)
+//   rbdkit._core op calls   the Python bindings and their checks (python/src/bind_ops.cpp)
+//
+// Shapes below are per sample; every surface adds a leading batch axis B.
+#pragma once
+
+#include "../algorithms/aba.hpp"
+#include "../algorithms/aba_derivatives.hpp"
+#include "../algorithms/crba.hpp"
+#include "../algorithms/integrators.hpp"
+#include "../algorithms/minv.hpp"
+#include "../algorithms/mujoco_convention.hpp"
+#include "../algorithms/rnea.hpp"
+#include "../algorithms/rnea_derivatives.hpp"
+#include "../configuration.hpp"
+#include "op.hpp"
+
+namespace rbd {
+namespace ops {
+
+constexpr double kGravity = -9.81;  // the default gravity (m/s², along world z)
+constexpr double kRequired = __builtin_nan("");  // a parameter without default
+inline constexpr const char* kWrtQV[] = {"q", "v", nullptr};
+inline constexpr const char* kWrtFromTo[] = {"from", "to", nullptr};
+
+// ---------------------------------------------------------------- dynamics (rnea, crba, minv, aba)
+
+struct InverseDynamics {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics", "inverse_dynamics", "rnea",
+      "RNEA. Returns (c, v, a, f): joint forces c (nv,) = M qdd + C qd + g - Σ Jᵀ f_ext, and per body (nb, 6): "
+      "velocity v, acceleration a (gravity not included) and the force f transmitted by its joint (body frame).",
+      5,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
+       real("gravity", kGravity), optional_array("f_ext", shape(kNb, 6))},
+      4,
+      {{"tau", shape(kNv)}, {"v", shape(kNb, 6)}, {"a", shape(kNb, 6)}, {"f", shape(kNb, 6)}},
+      0b1111, 0b0001, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    rnea(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], a.out[0]);
+    if (a.out[1])
+      for (int i = 0; i < m.nb; ++i) store(w.v[i], a.out[1] + 6 * i);
+    if (a.out[3])
+      for (int i = 0; i < m.nb; ++i) store(w.f[i], a.out[3] + 6 * i);
+    if (a.out[2]) {
+      remove_gravity(m, w, a.real[3], w.c);  // w.c is free after RNEA
+      for (int i = 0; i < m.nb; ++i) store(w.c[i], a.out[2] + 6 * i);
+    }
+    return true;
+  }
+};
+
+struct GeneralizedGravity {
+  static constexpr OpSpec spec = {
+      "generalized_gravity", "inverse_dynamics", "rnea", "g(q) (nv,): the joint forces that hold the robot still.",
+      2, {array("q", shape(kNq), kConfiguration), real("gravity", kGravity)},
+      1, {{"tau", shape(kNv)}}, 0b1, 0, kLinear, kScratchNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    for (int k = 0; k < m.nv; ++k) a.scratch[k] = S(0);  // qd = 0
+    rnea(m, w, a.in[0], static_cast<const S*>(a.scratch), static_cast<const S*>(nullptr),
+         static_cast<const S*>(nullptr), a.real[1], a.out[0]);
+    return true;
+  }
+};
+
+struct NonlinearEffects {
+  static constexpr OpSpec spec = {
+      "nonlinear_effects", "inverse_dynamics", "rnea", "c(q, qd) = C(q, qd) qd + g(q) (nv,).",
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), real("gravity", kGravity)},
+      1, {{"tau", shape(kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    rnea(m, w, a.in[0], a.in[1], static_cast<const S*>(nullptr), static_cast<const S*>(nullptr), a.real[2],
+         a.out[0]);
+    return true;
+  }
+};
+
+struct Crba {
+  static constexpr OpSpec spec = {
+      "crba", "crba", "crba", "Joint-space mass matrix M (nv, nv) by the composite rigid-body algorithm.",
+      1, {array("q", shape(kNq), kConfiguration)},
+      1, {{"M", shape(kNv, kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    crba(m, w, a.in[0], a.out[0]);
+    return true;
+  }
+};
+
+struct Minv {
+  static constexpr OpSpec spec = {
+      "minv", "minv", "minv",
+      "M⁻¹ (nv, nv) computed directly in O(n²) (not by factorising M). output_dense=False returns the upper "
+      "triangle (zeros below).",
+      2, {array("q", shape(kNq), kConfiguration), param("output_dense", kFlag, 1)},
+      1, {{"Minv", shape(kNv, kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return minv(m, w, a.in[0], a.choice[1] != 0, a.out[0]);
+  }
+};
+
+struct Aba {
+  static constexpr OpSpec spec = {
+      "aba", "aba", "aba", "Forward dynamics by the articulated-body algorithm: qdd (nv,).",
+      5,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("tau", shape(kNv)),
+       optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
+      1, {{"qdd", shape(kNv)}}, 0b1, 0, kLinearUnlessMimic, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return aba(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], a.out[0]);
+  }
+};
+
+struct ForwardDynamics {
+  static constexpr OpSpec spec = {
+      "forward_dynamics", "forward_dynamics", "minv",
+      "Forward dynamics through the inverse mass matrix: qdd = M⁻¹ (u - c) (nv,).",
+      5,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("u", shape(kNv)),
+       optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
+      1, {{"qdd", shape(kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return forward_dynamics(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], a.out[0]);
+  }
+};
+
+// ---------------------------------------------------------------- first-order derivatives
+
+struct InverseDynamicsGradient {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics_gradient", "inverse_dynamics_gradient", "rnea_derivatives",
+      "[∂c/∂q | ∂c/∂qd] (nv, 2·nv) of c = inverse_dynamics(q, qd, qdd)[0], tangent space.",
+      5,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
+       real("gravity", kGravity), optional_array("f_ext", shape(kNb, 6))},
+      1, {{"dtau", shape(kNv, k2Nv)}}, 0b1, 0, kFull, kScratch2NvNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    const int nv = m.nv;
+    S* dq = a.scratch;
+    S* dv = a.scratch + nv * nv;
+    rnea_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], dq, dv);
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) a.out[0][r * 2 * nv + c] = dq[r * nv + c], a.out[0][r * 2 * nv + nv + c] = dv[r * nv + c];
+    return true;
+  }
+};
+
+struct ForwardDynamicsGradient {
+  static constexpr OpSpec spec = {
+      "forward_dynamics_gradient", "forward_dynamics_gradient", "aba_derivatives",
+      "(∂qdd/∂q, ∂qdd/∂qd), each (nv, nv), of qdd = forward_dynamics(q, qd, u): -M⁻¹ ∂ID/∂(q, qd) at the "
+      "forward-dynamics acceleration qdd (nv,, the third output).",
+      5,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("u", shape(kNv)),
+       optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
+      3, {{"dqdd_dq", shape(kNv, kNv)}, {"dqdd_dqd", shape(kNv, kNv)}, {"qdd", shape(kNv)}},
+      0b011, 0, kFull, kScratchNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    S* qdd = a.out[2] ? a.out[2] : a.scratch;
+    return aba_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], qdd, a.out[0], a.out[1]);
+  }
+};
+
+// ---------------------------------------------------------------- configuration space (Lie-group operations)
+
+struct Integrate {
+  static constexpr OpSpec spec = {
+      "integrate", "configuration", "configuration",
+      "q ⊕ v (nq,): SE(3) exponential on a free-flyer joint (twist in the local frame), SO(3) on spherical "
+      "joints, q + v elsewhere.",
+      2, {array("q", shape(kNq), kConfiguration), array("v", shape(kNv))},
+      1, {{"q_next", shape(kNq)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    integrate(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct Difference {
+  static constexpr OpSpec spec = {
+      "difference", "configuration", "configuration",
+      "q1 ⊖ q0 (nv,): the tangent step v with integrate(q0, v) = q1.",
+      2, {array("q0", shape(kNq), kConfiguration), array("q1", shape(kNq), kConfiguration)},
+      1, {{"v", shape(kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    difference(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct DIntegrate {
+  static constexpr OpSpec spec = {
+      "dIntegrate", "configuration", "configuration",
+      "Tangent Jacobian (nv, nv) of integrate(q, v) with respect to 'q' or 'v'.",
+      3, {array("q", shape(kNq), kConfiguration), array("v", shape(kNv)), param("with_respect_to", kChoice, 0, kWrtQV)},
+      1, {{"J", shape(kNv, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    dintegrate(m, a.in[0], a.in[1], a.choice[2], a.out[0]);
+    return true;
+  }
+};
+
+struct DDifference {
+  static constexpr OpSpec spec = {
+      "dDifference", "configuration", "configuration",
+      "Tangent Jacobian (nv, nv) of difference(q0, q1) with respect to 'from' (q0) or 'to' (q1).",
+      3,
+      {array("q0", shape(kNq), kConfiguration), array("q1", shape(kNq), kConfiguration),
+       param("with_respect_to", kChoice, 1, kWrtFromTo)},
+      1, {{"J", shape(kNv, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    ddifference(m, a.in[0], a.in[1], a.choice[2], a.out[0]);
+    return true;
+  }
+};
+
+// ---------------------------------------------------------------- integrators and the plant step
+
+// the arguments after the state: u, dt, integrator_type, f_ext, gravity, output_convention
+#define RBD_STEP_ARGS                                                                                   \
+  array("u", shape(kNv)), param("dt", kTimeStep, kRequired), param("integrator_type", kIntegrator, 0),  \
+      optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity), param("output_convention", kConvention, 0)
+
+struct Integrator {
+  static constexpr OpSpec spec = {
+      "integrator", "integrator", "integrators",
+      "x⁺ = [q⁺; qd⁺] (nq + nv,) after one step of length dt with constant controls u and body-local external "
+      "forces f_ext.",
+      8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
+      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return integrator_step(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6], a.out[0],
+                           a.out[0] + m.nq, a.scratch, a.choice[7]);
+  }
+};
+
+struct IntegratorGradient {
+  static constexpr OpSpec spec = {
+      "integrator_gradient", "integrator_gradient", "integrators",
+      "[A | B] = ∂x⁺/∂(x, u) (2·nv, 3·nv) in the tangent space: rows [δq⁺; δqd⁺], columns [δq | δqd | δu] "
+      "(x⁺ (nq + nv,) is the first output).",
+      8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
+      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    S* x = a.out[0] ? a.out[0] : a.scratch + integrator_gradient_scratch_values(m.nq, m.nv);
+    return integrator_gradient(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6], x,
+                               x + m.nq, a.out[1], a.scratch, a.choice[7]);
+  }
+};
+
+struct PlantStep {
+  static constexpr OpSpec spec = {
+      "plant_step", "integrator", "integrators", "x⁺ (nq + nv,) for x = [q; qd] (nq + nv,).",
+      7, {array("x", shape(kNx), kConfiguration), RBD_STEP_ARGS},
+      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return integrator_step(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
+                           a.out[0], a.out[0] + m.nq, a.scratch, a.choice[6]);
+  }
+};
+
+struct PlantStepGradient {
+  static constexpr OpSpec spec = {
+      "plant_step_gradient", "integrator_gradient", "integrators",
+      "[A | B] (2·nv, 3·nv) of plant_step, tangent space (x⁺ is the first output).",
+      7, {array("x", shape(kNx), kConfiguration), RBD_STEP_ARGS},
+      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    S* x = a.out[0] ? a.out[0] : a.scratch + integrator_gradient_scratch_values(m.nq, m.nv);
+    return integrator_gradient(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
+                               x, x + m.nq, a.out[1], a.scratch, a.choice[6]);
+  }
+};
+
+#undef RBD_STEP_ARGS
+
+// ---------------------------------------------------------------- the list
+
+template <typename... Op> struct OpList {
+  static constexpr int size = sizeof...(Op);
+};
+
+// every registered operation; an operation's id is its index here
+using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crba, Minv, Aba, ForwardDynamics,
+                      InverseDynamicsGradient, ForwardDynamicsGradient, Integrate, Difference, DIntegrate,
+                      DDifference, Integrator, IntegratorGradient, PlantStep, PlantStepGradient>;
+
+}  // namespace ops
+}  // namespace rbd

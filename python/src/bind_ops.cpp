@@ -1,0 +1,553 @@
+// rbdkit._core: the registered operations (include/rbdkit/ops/registry.hpp)
+// as Python callables, generated from the registry's table.
+//
+//   h = _core.OpHandle(model_core, algorithms, threads, dtype)   # an rbd::Handle
+//   inverse_dynamics = h.op("inverse_dynamics", False)          # RBD's results
+//   tau, v, a, f = inverse_dynamics(q, qd, qdd)                  # (nq,) / (B, nq) ...
+//
+// One call parses its arguments against the operation's spec (positional or
+// by keyword), converts and checks each array in one pass (dtype, shape,
+// batch axis; values in C++: rbd::ops::check_call), allocates the outputs
+// and runs rbd::Handle::run. Errors name the argument: TypeError for a
+// wrong kind of argument, ValueError for a wrong shape or value, RuntimeError
+// for a failed computation. The callables use CPython's vectorcall and
+// NumPy's C API directly: a call on one sample costs a few hundred
+// nanoseconds above the kernel.
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <structmember.h>
+#define NPY_NO_DEPRECATED_API NPY_1_21_API_VERSION
+#define PY_ARRAY_UNIQUE_SYMBOL rbdkit_ops_ARRAY_API
+#include <numpy/arrayobject.h>
+
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <new>
+#include <stdexcept>
+#include <string>
+
+#include "rbdkit/handle.hpp"
+#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/mujoco_api.hpp"
+#include "rbdkit/ops/table.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+namespace ops = rbd::ops;
+
+namespace {
+
+// ---------------------------------------------------------------- the handle behind the callables
+
+struct OpHandle {
+  std::unique_ptr<rbd::Handle> h;
+  int npy_type;  // NPY_DOUBLE or NPY_FLOAT
+};
+
+// ---------------------------------------------------------------- messages
+
+std::string dim_name(int d) {
+  switch (d) {
+    case ops::kNq: return "nq";
+    case ops::kNv: return "nv";
+    case ops::kNb: return "nb";
+    case ops::kNx: return "nq+nv";
+    case ops::k2Nv: return "2nv";
+    case ops::k3Nv: return "3nv";
+    default: return std::to_string(d);
+  }
+}
+
+std::string tuple_str(const npy_intp* d, int n) {
+  std::string s = "(";
+  for (int k = 0; k < n; ++k) s += (k ? ", " : "") + std::to_string(d[k]);
+  return s + (n == 1 ? ",)" : ")");
+}
+
+// a Python exception of `type` (owned message); returns null for `return fail(...)`
+PyObject* fail(PyObject* type, const std::string& msg) {
+  PyErr_SetString(type, msg.c_str());
+  return nullptr;
+}
+
+const char* type_name(PyObject* o) { return Py_TYPE(o)->tp_name; }
+
+// ---------------------------------------------------------------- the callable
+
+struct OpFn {
+  PyObject_HEAD
+  vectorcallfunc vectorcall;
+  PyObject* owner;  // the OpHandle's Python object (kept alive)
+  OpHandle* handle;
+  int op;
+  const ops::OpSpec* spec;
+  unsigned returns;
+  PyObject* names[ops::kMaxArgs];  // interned argument names
+};
+
+// keeps the converted arrays of one call alive
+struct Refs {
+  PyObject* p[3 * ops::kMaxArgs + ops::kMaxOutputs] = {};  // per array: as given, float64, rounded
+  int n = 0;
+  ~Refs() {
+    for (int k = 0; k < n; ++k) Py_XDECREF(p[k]);
+  }
+  PyObject* keep(PyObject* o) { return p[n++] = o; }
+};
+
+// the argument `o` as a C-contiguous array of `type` (borrowed or kept in refs); null with a TypeError.
+// *wide: the values before they were rounded to float32 (float64), when they were
+PyArrayObject* as_array(PyObject* o, const char* name, int type, Refs& refs, PyArrayObject** wide) {
+  *wide = nullptr;
+  if (PyArray_CheckExact(o)) {
+    PyArrayObject* a = reinterpret_cast<PyArrayObject*>(o);
+    if (PyArray_TYPE(a) == type && PyArray_IS_C_CONTIGUOUS(a) && PyArray_ISALIGNED(a)) return a;
+  }
+  if (o == Py_None || PyUnicode_Check(o) || PyBytes_Check(o) || PyDict_Check(o) || PyAnySet_Check(o)) {
+    fail(PyExc_TypeError, std::string(name) + ": expected a real numeric array, got " + type_name(o));
+    return nullptr;
+  }
+  PyObject* any = PyArray_FromAny(o, nullptr, 0, 0, 0, nullptr);
+  if (!any) {
+    PyObject *t, *v, *tb;
+    PyErr_Fetch(&t, &v, &tb);
+    PyObject* s = v ? PyObject_Str(v) : nullptr;
+    std::string why = s ? PyUnicode_AsUTF8(s) : "not convertible";
+    Py_XDECREF(s), Py_XDECREF(t), Py_XDECREF(v), Py_XDECREF(tb);
+    fail(PyExc_TypeError, std::string(name) + ": expected a real numeric array (" + why + ")");
+    return nullptr;
+  }
+  refs.keep(any);
+  PyArrayObject* a = reinterpret_cast<PyArrayObject*>(any);
+  const int t = PyArray_TYPE(a);
+  if (t == NPY_BOOL || !(PyTypeNum_ISFLOAT(t) || PyTypeNum_ISINTEGER(t))) {
+    PyObject* d = PyObject_Str(reinterpret_cast<PyObject*>(PyArray_DESCR(a)));
+    std::string dn = d ? PyUnicode_AsUTF8(d) : "?";
+    Py_XDECREF(d);
+    fail(PyExc_TypeError, std::string(name) + ": expected a real numeric array (float or int), got dtype " + dn);
+    return nullptr;
+  }
+  if (type == NPY_FLOAT && t != NPY_FLOAT) {  // float64 values first: rounded once they are checked
+    PyObject* w = PyArray_FromAny(any, PyArray_DescrFromType(NPY_DOUBLE), 0, 0, NPY_ARRAY_CARRAY, nullptr);
+    if (!w) return nullptr;
+    *wide = reinterpret_cast<PyArrayObject*>(refs.keep(w));
+    return *wide;
+  }
+  PyObject* c = PyArray_FromAny(any, PyArray_DescrFromType(type), 0, 0, NPY_ARRAY_CARRAY | NPY_ARRAY_FORCECAST,
+                                nullptr);
+  if (!c) return nullptr;
+  refs.keep(c);
+  return reinterpret_cast<PyArrayObject*>(c);
+}
+
+// a real number (not a bool): false with a TypeError / ValueError naming it
+bool as_real(PyObject* o, const char* name, double& x) {
+  if (PyFloat_CheckExact(o)) {
+    x = PyFloat_AS_DOUBLE(o);
+  } else if (PyBool_Check(o) || PyArray_IsScalar(o, Bool) ||
+             !(PyFloat_Check(o) || PyLong_Check(o) || PyArray_IsScalar(o, Floating) || PyArray_IsScalar(o, Integer))) {
+    fail(PyExc_TypeError, std::string(name) + ": expected a real number, got " + type_name(o));
+    return false;
+  } else {
+    x = PyFloat_AsDouble(o);
+    if (x == -1.0 && PyErr_Occurred()) return false;
+  }
+  if (!std::isfinite(x)) {
+    PyObject* r = PyObject_Repr(o);
+    std::string s = r ? PyUnicode_AsUTF8(r) : "?";
+    Py_XDECREF(r);
+    fail(PyExc_ValueError, std::string(name) + ": expected a finite number, got " + (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf"));
+    return false;
+  }
+  return true;
+}
+
+// a name of `choices` (null-terminated): its index, or -1 with a ValueError in check_choice's words
+int as_choice(PyObject* o, const char* name, const char* const* choices) {
+  if (PyUnicode_Check(o)) {
+    const char* s = PyUnicode_AsUTF8(o);
+    for (int k = 0; s && choices[k]; ++k)
+      if (std::strcmp(s, choices[k]) == 0) return k;
+  }
+  std::string list;
+  for (int k = 0; choices[k]; ++k) list += std::string(k ? ", " : "") + "'" + choices[k] + "'";
+  PyObject* r = PyObject_Repr(o);
+  std::string got = r ? PyUnicode_AsUTF8(r) : "?";
+  Py_XDECREF(r);
+  fail(PyExc_ValueError, std::string(name) + ": expected one of " + list + ", got " + got);
+  return -1;
+}
+
+// a parameter of the spec into the call; false with an exception set
+bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, double bound) {
+  switch (a.kind) {
+    case ops::kReal:
+      if (!as_real(o, a.name, c.real[k])) return false;
+      if (std::fabs(c.real[k]) > bound) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "%s: expected a magnitude of at most %g (larger ones overflow), got %g", a.name,
+                      bound, c.real[k]);
+        fail(PyExc_ValueError, buf);
+        return false;
+      }
+      return true;
+    case ops::kTimeStep:
+      if (!as_real(o, a.name, c.real[k])) return false;
+      if (!(c.real[k] > 0 && c.real[k] <= rbd::kMaxTimeStep)) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "%s: expected a positive time step of at most %g s, got %g", a.name,
+                      rbd::kMaxTimeStep, c.real[k]);
+        fail(PyExc_ValueError, buf);
+        return false;
+      }
+      return true;
+    case ops::kFlag:
+      if (!(PyBool_Check(o) || PyArray_IsScalar(o, Bool))) {
+        fail(PyExc_TypeError, std::string(a.name) + ": expected a bool, got " + type_name(o));
+        return false;
+      }
+      c.choice[k] = PyObject_IsTrue(o);
+      return true;
+    case ops::kChoice: return (c.choice[k] = as_choice(o, a.name, a.choices)) >= 0;
+    case ops::kIntegrator:
+    case ops::kConvention: {
+      if (!PyUnicode_Check(o)) {
+        fail(PyExc_TypeError, std::string(a.name) + ": expected a string" +
+                                  (a.kind == ops::kConvention ? " ('pinocchio' or 'mujoco')" : "") + ", got " +
+                                  type_name(o));
+        return false;
+      }
+      const std::string s = PyUnicode_AsUTF8(o);
+      try {
+        c.choice[k] = a.kind == ops::kIntegrator ? rbd::integrator_from_name(s) : rbd::convention_from_name(s);
+      } catch (const std::exception& e) {
+        fail(PyExc_ValueError, e.what());
+        return false;
+      }
+      return true;
+    }
+    default: return true;
+  }
+}
+
+// the default of a parameter into the call
+void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c) {
+  if (a.kind == ops::kReal || a.kind == ops::kTimeStep) c.real[k] = a.value;
+  else c.choice[k] = static_cast<int>(a.value);
+}
+
+bool is_array(const ops::ArgSpec& a) { return a.kind == ops::kArray || a.kind == ops::kOptionalArray; }
+
+PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObject* kwnames) {
+  OpFn* self = reinterpret_cast<OpFn*>(self_);
+  const ops::OpSpec& op = *self->spec;
+  const rbd::Model& m = self->handle->h->model();
+  const int type = self->handle->npy_type;
+
+  // ---- the arguments by position and keyword
+  PyObject* slot[ops::kMaxArgs] = {};
+  const Py_ssize_t npos = PyVectorcall_NARGS(nargsf);
+  if (npos > op.n_args)
+    return fail(PyExc_TypeError, std::string(op.name) + "() takes at most " + std::to_string(op.n_args) +
+                                     " arguments (" + std::to_string(npos) + " given)");
+  for (Py_ssize_t k = 0; k < npos; ++k) slot[k] = args[k];
+  if (kwnames) {
+    const Py_ssize_t nkw = PyTuple_GET_SIZE(kwnames);
+    for (Py_ssize_t j = 0; j < nkw; ++j) {
+      PyObject* key = PyTuple_GET_ITEM(kwnames, j);
+      int k = 0;
+      while (k < op.n_args && self->names[k] != key) ++k;
+      if (k == op.n_args) {
+        k = 0;
+        while (k < op.n_args && PyUnicode_Compare(self->names[k], key) != 0) ++k;
+      }
+      if (k == op.n_args) {
+        PyObject* r = PyObject_Repr(key);
+        std::string s = r ? PyUnicode_AsUTF8(r) : "?";
+        Py_XDECREF(r);
+        return fail(PyExc_TypeError, std::string(op.name) + "() got an unexpected keyword argument " + s);
+      }
+      if (slot[k])
+        return fail(PyExc_TypeError, std::string(op.name) + "() got multiple values for argument '" +
+                                         op.args[k].name + "'");
+      slot[k] = args[npos + j];
+    }
+  }
+
+  // ---- parameters (cheap checks first), then the arrays: dtype, shape, batch axis
+  ops::OpCall c;
+  for (int k = 0; k < op.n_args; ++k) {
+    const ops::ArgSpec& a = op.args[k];
+    if (is_array(a)) continue;
+    if (!slot[k]) {
+      if (std::isnan(a.value))
+        return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
+      default_param(a, k, c);
+    } else if (!parse_param(a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput)) {
+      return nullptr;
+    }
+  }
+  Refs refs;
+  long B = -1;
+  int source = -1;
+  for (int k = 0; k < op.n_args; ++k) {
+    const ops::ArgSpec& a = op.args[k];
+    if (!is_array(a)) continue;
+    PyObject* o = slot[k];
+    if (!o) {
+      if (a.kind == ops::kArray)
+        return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
+      continue;
+    }
+    if (a.kind == ops::kOptionalArray && (o == Py_None || ((PyList_Check(o) || PyTuple_Check(o)) && PySequence_Size(o) == 0)))
+      continue;
+    PyArrayObject* wide;
+    PyArrayObject* arr = as_array(o, a.name, type, refs, &wide);
+    if (!arr) return nullptr;
+    // (shape) or (B, shape)
+    const int r = a.shape.rank, nd = PyArray_NDIM(arr);
+    const npy_intp* d = PyArray_DIMS(arr);
+    npy_intp want[ops::kMaxRank];
+    for (int j = 0; j < r; ++j) want[j] = ops::extent(a.shape.d[j], m.nq, m.nv, m.nb());
+    bool batched = false, ok = false;
+    if (nd == r || nd == r + 1) {
+      const int o0 = nd - r;
+      ok = true;
+      for (int j = 0; j < r; ++j) ok &= d[o0 + j] == want[j];
+      batched = nd == r + 1;
+    }
+    if (!ok) {
+      std::string desc;
+      for (int j = 0; j < r; ++j)
+        desc += (j ? ", " : "") + dim_name(a.shape.d[j]) + "=" + std::to_string(want[j]);
+      std::string wb = "(B, ";
+      for (int j = 0; j < r; ++j) wb += (j ? ", " : "") + std::to_string(want[j]);
+      return fail(PyExc_ValueError, std::string(a.name) + ": expected shape " + tuple_str(want, r) + " or " + wb +
+                                        ") with " + desc + ", got shape " + tuple_str(d, nd));
+    }
+    if (batched) {
+      if (d[0] == 0)
+        return fail(PyExc_ValueError, std::string(a.name) + ": the batch is empty (shape " + tuple_str(d, nd) + ")");
+      if (B >= 0 && d[0] != B)
+        return fail(PyExc_ValueError, std::string(a.name) + ": batch size " + std::to_string(d[0]) +
+                                          " does not match " + op.args[source].name + "'s batch size " +
+                                          std::to_string(B));
+      B = d[0], source = k;
+    }
+    if (wide) {  // float64 values bound for float32: within float32's bounds, then rounded
+      try {
+        const long n = ops::arg_values(a, m);
+        ops::check_bounded(static_cast<const double*>(PyArray_DATA(wide)), batched ? d[0] : 1, n, a.name, batched,
+                           rbd::kMaxInputF32);
+      } catch (const std::exception& e) {
+        return fail(PyExc_ValueError, e.what());
+      }
+      PyObject* c = PyArray_FromAny(reinterpret_cast<PyObject*>(wide), PyArray_DescrFromType(NPY_FLOAT), 0, 0,
+                                    NPY_ARRAY_CARRAY | NPY_ARRAY_FORCECAST, nullptr);
+      if (!c) return nullptr;
+      arr = reinterpret_cast<PyArrayObject*>(refs.keep(c));
+    }
+    c.in[k] = PyArray_DATA(arr);
+    c.batched[k] = batched;
+  }
+  c.B = B < 0 ? 1 : B;
+
+  // ---- outputs: (shape) for an unbatched call, (B, shape) otherwise; the
+  // ones not returned are not computed (null) unless the kernel writes them anyway
+  PyObject* outs[ops::kMaxOutputs] = {};
+  int nret = 0;
+  for (int o = 0; o < op.n_out; ++o) {
+    if (!(self->returns >> o & 1u)) continue;
+    npy_intp dims[ops::kMaxRank + 1];
+    int nd = 0;
+    if (B >= 0) dims[nd++] = B;
+    for (int j = 0; j < op.out[o].shape.rank; ++j) dims[nd++] = ops::extent(op.out[o].shape.d[j], m.nq, m.nv, m.nb());
+    PyObject* a = PyArray_SimpleNew(nd, dims, type);
+    if (!a) return nullptr;
+    outs[o] = refs.keep(a);
+    c.out[o] = PyArray_DATA(reinterpret_cast<PyArrayObject*>(a));
+    ++nret;
+  }
+
+  // ---- run (the GIL released for a batch)
+  const char* err = nullptr;
+  PyObject* err_type = nullptr;
+  std::string msg;
+  PyThreadState* ts = c.B > 1 ? PyEval_SaveThread() : nullptr;
+  try {
+    self->handle->h->run(self->op, c);
+  } catch (const std::invalid_argument& e) {
+    err_type = PyExc_ValueError, msg = e.what();
+  } catch (const std::bad_alloc&) {
+    err_type = PyExc_MemoryError, msg = std::string(op.name) + ": out of memory";
+  } catch (const std::exception& e) {
+    err_type = PyExc_RuntimeError, msg = e.what();
+  }
+  if (ts) PyEval_RestoreThread(ts);
+  (void)err;
+  if (err_type) return fail(err_type, msg);
+
+  // ---- results: one array, or a tuple in output order
+  if (nret == 1) {
+    for (int o = 0; o < op.n_out; ++o)
+      if (outs[o]) return Py_NewRef(outs[o]);
+  }
+  PyObject* t = PyTuple_New(nret);
+  if (!t) return nullptr;
+  for (int o = 0, j = 0; o < op.n_out; ++o)
+    if (outs[o]) PyTuple_SET_ITEM(t, j++, Py_NewRef(outs[o]));
+  return t;
+}
+
+void op_dealloc(PyObject* self_) {
+  OpFn* self = reinterpret_cast<OpFn*>(self_);
+  PyObject_GC_UnTrack(self_);
+  Py_CLEAR(self->owner);
+  for (PyObject*& n : self->names) Py_CLEAR(n);
+  PyObject_GC_Del(self_);
+}
+
+int op_traverse(PyObject* self_, visitproc visit, void* arg) {
+  Py_VISIT(reinterpret_cast<OpFn*>(self_)->owner);
+  return 0;
+}
+
+int op_clear(PyObject* self_) {
+  Py_CLEAR(reinterpret_cast<OpFn*>(self_)->owner);
+  return 0;
+}
+
+// the signature line and the spec's doc
+std::string signature_doc(const ops::OpSpec& op) {
+  std::string s = std::string(op.name) + "(";
+  for (int k = 0; k < op.n_args; ++k) {
+    const ops::ArgSpec& a = op.args[k];
+    s += (k ? ", " : "") + std::string(a.name);
+    if (a.kind == ops::kOptionalArray) s += "=None";
+    else if (a.kind == ops::kReal && !std::isnan(a.value)) s += std::string("=") + nb::str(nb::float_(a.value)).c_str();
+    else if (a.kind == ops::kFlag) s += a.value != 0 ? "=True" : "=False";
+    else if (a.kind == ops::kChoice) s += std::string("='") + a.choices[static_cast<int>(a.value)] + "'";
+    else if (a.kind == ops::kIntegrator) s += "='euler'";
+    else if (a.kind == ops::kConvention) s += "='pinocchio'";
+  }
+  return s + ")\n\n" + op.doc;
+}
+
+PyObject* op_get_doc(PyObject* self_, void*) {
+  return PyUnicode_FromString(signature_doc(*reinterpret_cast<OpFn*>(self_)->spec).c_str());
+}
+PyObject* op_get_name(PyObject* self_, void*) { return PyUnicode_FromString(reinterpret_cast<OpFn*>(self_)->spec->name); }
+PyObject* op_repr(PyObject* self_) {
+  return PyUnicode_FromFormat("<rbdkit operation %s>", reinterpret_cast<OpFn*>(self_)->spec->name);
+}
+
+PyGetSetDef op_getset[] = {
+    {"__doc__", op_get_doc, nullptr, nullptr, nullptr},
+    {"__name__", op_get_name, nullptr, nullptr, nullptr},
+    {"__qualname__", op_get_name, nullptr, nullptr, nullptr},
+    {nullptr, nullptr, nullptr, nullptr, nullptr},
+};
+
+PyTypeObject* op_type() {
+  static PyTypeObject* t = [] {
+    static PyType_Slot slots[] = {
+        {Py_tp_dealloc, reinterpret_cast<void*>(op_dealloc)},
+        {Py_tp_traverse, reinterpret_cast<void*>(op_traverse)},
+        {Py_tp_clear, reinterpret_cast<void*>(op_clear)},
+        {Py_tp_call, reinterpret_cast<void*>(PyVectorcall_Call)},
+        {Py_tp_getset, op_getset},
+        {Py_tp_repr, reinterpret_cast<void*>(op_repr)},
+        {0, nullptr},
+    };
+    static PyMemberDef members[] = {
+        {"__vectorcalloffset__", T_PYSSIZET, static_cast<Py_ssize_t>(offsetof(OpFn, vectorcall)), READONLY, nullptr},
+        {nullptr, 0, 0, 0, nullptr},
+    };
+    static PyType_Slot all[8];
+    int n = 0;
+    for (; slots[n].slot; ++n) all[n] = slots[n];
+    all[n++] = {Py_tp_members, members};
+    all[n] = {0, nullptr};
+    static PyType_Spec spec = {"rbdkit._core.Operation", sizeof(OpFn), 0,
+                               Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL, all};
+    return reinterpret_cast<PyTypeObject*>(PyType_FromSpec(&spec));
+  }();
+  return t;
+}
+
+}  // namespace
+
+void bind_ops(nb::module_& m) {
+  if (_import_array() < 0) throw nb::python_error();
+  if (!op_type()) throw nb::python_error();
+
+  // [(name, algorithm, family, doc, [(argument, kind, default)])] in registry
+  // order; kind: array, optional, real, dt, flag, choice, integrator,
+  // convention; default: None where there is none
+  m.def("registered_operations", [] {
+    static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention"};
+    nb::list out;
+    for (const ops::OpEntry& e : ops::op_table()) {
+      const ops::OpSpec& op = *e.spec;
+      nb::list args;
+      for (int k = 0; k < op.n_args; ++k) {
+        const ops::ArgSpec& a = op.args[k];
+        nb::object def = nb::none();
+        if (a.kind == ops::kReal) def = nb::float_(a.value);
+        else if (a.kind == ops::kFlag) def = nb::bool_(a.value != 0);
+        else if (a.kind == ops::kChoice) def = nb::str(a.choices[static_cast<int>(a.value)]);
+        else if (a.kind == ops::kIntegrator) def = nb::str("euler");
+        else if (a.kind == ops::kConvention) def = nb::str("pinocchio");
+        args.append(nb::make_tuple(a.name, kinds[a.kind], def));
+      }
+      out.append(nb::make_tuple(op.name, op.algorithm, op.family, signature_doc(op), args));
+    }
+    return out;
+  });
+
+  nb::class_<OpHandle>(m, "OpHandle")
+      .def(
+          "__init__",
+          [](OpHandle* self, const rbd::Model& model, const std::vector<std::string>& algorithms, int threads,
+             const std::string& dtype) {
+            new (self) OpHandle{std::make_unique<rbd::Handle>(model, algorithms, threads, dtype),
+                                dtype == "float32" ? NPY_FLOAT : NPY_DOUBLE};
+          },
+          "model"_a, "algorithms"_a, "threads"_a, "dtype"_a)
+      .def_prop_ro("threads", [](const OpHandle& h) { return h.h->threads(); })
+      .def_prop_ro("dtype", [](const OpHandle& h) { return h.h->dtype(); })
+      .def("has", [](const OpHandle& h, const std::string& name) { return h.h->has(name); }, "name"_a)
+      // the registered operations this handle runs, in registry order
+      .def("operations",
+           [](const OpHandle& h) {
+             std::vector<std::string> out;
+             for (const ops::OpEntry& e : ops::op_table())
+               if (h.h->has_op(e.id)) out.push_back(e.spec->name);
+             return out;
+           })
+      // the callable of a registered operation; handle_results: rbdkit.Handle's results, else rbdkit.RBD's
+      .def("op", [](nb::handle self, const std::string& name, bool handle_results) {
+        OpHandle& h = nb::cast<OpHandle&>(self);
+        const int id = ops::find_op(name);
+        if (id < 0) throw nb::value_error(("op: '" + name + "' is not a registered operation").c_str());
+        const ops::OpSpec& spec = *ops::op_table()[id].spec;
+        OpFn* f = PyObject_GC_New(OpFn, op_type());
+        if (!f) throw nb::python_error();
+        f->vectorcall = op_call;
+        f->owner = Py_NewRef(self.ptr());
+        f->handle = &h;
+        f->op = id;
+        f->spec = &spec;
+        f->returns = handle_results && spec.handle_returns ? spec.handle_returns : spec.returns;
+        for (int k = 0; k < ops::kMaxArgs; ++k)
+          f->names[k] = k < spec.n_args ? PyUnicode_InternFromString(spec.args[k].name) : nullptr;
+        PyObject_GC_Track(f);
+        return nb::steal(reinterpret_cast<PyObject*>(f));
+      }, "name"_a, "handle_results"_a);
+}

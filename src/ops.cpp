@@ -1,0 +1,272 @@
+// The registry at run time (ops/table.hpp): the table generated from
+// ops::AllOps, the checks of a call, and the serial per-sample loop.
+#include "rbdkit/ops/table.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "rbdkit/dynamics.hpp"
+#include "rbdkit/mujoco_api.hpp"
+#include "rbdkit/ops/registry.hpp"
+
+namespace rbd {
+namespace ops {
+
+namespace {
+
+template <typename Op> bool kernel64(const ModelView<double>& m, Workspace<double>& w, const OpArgs<double>& a) {
+  return Op::run(m, w, a);
+}
+
+template <typename... Op> std::vector<OpEntry> make_table(OpList<Op...>) {
+  std::vector<OpEntry> t;
+  int id = 0;
+  ((t.push_back({id++, &Op::spec, &kernel64<Op>})), ...);
+  return t;
+}
+
+std::string label_of(const char* name, bool batched, long s) {
+  return batched ? std::string(name) + "[" + std::to_string(s) + "]" : std::string(name);
+}
+
+template <typename T> struct Bounds;
+template <> struct Bounds<double> {
+  static constexpr double input = kMaxInput, angle = kMaxAngle;
+};
+template <> struct Bounds<float> {
+  static constexpr double input = kMaxInputF32, angle = kMaxAngleF32;
+};
+
+// n finite values of magnitude at most Bounds<T>::input
+template <typename T> bool finite_values(const T* x, long n) {
+  bool ok = true;
+  for (long k = 0; k < n; ++k) ok &= std::fabs(static_cast<double>(x[k])) <= Bounds<T>::input;  // false for NaN
+  return ok;
+}
+
+template <typename T> [[noreturn]] void throw_values(const T* x, long n, const std::string& label) {
+  for (long k = 0; k < n; ++k) {
+    const double v = static_cast<double>(x[k]);
+    std::ostringstream os;
+    if (!std::isfinite(v)) {
+      os << label << ": expected finite values, got " << v << " at flat index " << k;
+      throw std::invalid_argument(os.str());
+    }
+    if (std::fabs(v) > Bounds<T>::input) {
+      os << label << ": expected values of magnitude at most " << Bounds<T>::input
+         << " (larger ones overflow), got " << v << " at flat index " << k;
+      throw std::invalid_argument(os.str());
+    }
+  }
+  throw std::logic_error("throw_values: no bad value");
+}
+
+// a configuration (nq values) in a convention: finite, bounded angles, unit quaternions
+template <typename T> void check_configuration_values(const Model& m, const T* q, const char* name, bool batched,
+                                                      long s, int convention) {
+  bool ok = finite_values(q, m.nq);
+  for (size_t i = 0; ok && i < m.bodies.size(); ++i) {
+    const BodyDesc<double>& b = m.bodies[i];
+    if (b.mimic) continue;
+    if (b.type == kRevolute || b.type == kHelical) ok &= std::fabs(static_cast<double>(q[b.q_idx])) <= Bounds<T>::angle;
+    if (b.type == kFree || b.type == kSpherical) {
+      const int o = b.q_idx + (b.type == kFree ? 3 : 0);
+      double n2 = 0;
+      for (int k = 0; k < 4; ++k) n2 += static_cast<double>(q[o + k]) * static_cast<double>(q[o + k]);
+      ok &= std::fabs(std::sqrt(n2) - 1.0) <= 1e-6;
+    }
+  }
+  if (ok) return;
+  // the message: the bounds of T first, then the float64 checks (joint angles, quaternions)
+  const std::string label = label_of(name, batched, s);
+  if (!finite_values(q, m.nq)) throw_values(q, m.nq, label);
+  std::vector<double> qd(q, q + m.nq);
+  for (size_t i = 0; i < m.bodies.size(); ++i) {
+    const BodyDesc<double>& b = m.bodies[i];
+    if (!b.mimic && (b.type == kRevolute || b.type == kHelical) && std::fabs(qd[b.q_idx]) > Bounds<T>::angle) {
+      std::ostringstream os;
+      os << label << ": the angle of joint '" << m.joints[i].name << "' (q[" << b.q_idx << "]) must have magnitude "
+         << "at most " << Bounds<T>::angle << " rad (beyond it sin and cos have no precision left), got " << qd[b.q_idx];
+      throw std::invalid_argument(os.str());
+    }
+  }
+  check_configuration_in(m, qd.data(), name, batched ? s : -1, convention);
+  throw std::logic_error("check_configuration_values: no bad value");
+}
+
+[[noreturn]] void bad_param(const ArgSpec& a, const std::string& what) {
+  throw std::invalid_argument(std::string(a.name) + ": " + what);
+}
+
+int n_choices(const ArgSpec& a) {
+  int n = 0;
+  while (a.choices && a.choices[n]) ++n;
+  return n;
+}
+
+}  // namespace
+
+void check_bounded(const double* x, long samples, long n, const char* name, bool batched, double bound) {
+  for (long s = 0; s < samples; ++s)
+    for (long k = 0; k < n; ++k) {
+      const double v = x[s * n + k];
+      if (std::fabs(v) <= bound) continue;
+      std::ostringstream os;
+      os << label_of(name, batched, s) << ": expected ";
+      if (std::isfinite(v)) os << "values of magnitude at most " << bound << " (larger ones overflow), got " << v;
+      else os << "finite values, got " << v;
+      os << " at flat index " << k;
+      throw std::invalid_argument(os.str());
+    }
+}
+
+const std::vector<OpEntry>& op_table() {
+  static const std::vector<OpEntry> table = make_table(AllOps{});
+  return table;
+}
+
+int find_op(const std::string& name) {
+  for (const OpEntry& e : op_table())
+    if (name == e.spec->name) return e.id;
+  return -1;
+}
+
+long arg_values(const ArgSpec& a, const Model& m) { return values_of(a.shape, m.nq, m.nv, m.nb()); }
+long out_values(const OutSpec& o, const Model& m) { return values_of(o.shape, m.nq, m.nv, m.nb()); }
+
+long scratch_values(const OpSpec& op, const Model& m) {
+  switch (op.scratch) {
+    case kNoScratch: return 0;
+    case kScratchNv: return m.nv;
+    case kScratch2NvNv: return 2L * m.nv * m.nv;
+    case kScratchIntegrator: return integrator_scratch_values(m.nq, m.nv);
+    case kScratchIntegratorGrad: return integrator_gradient_scratch_values(m.nq, m.nv) + m.nq + m.nv;
+  }
+  return 0;
+}
+
+WorkspaceLayout workspace_layout(const OpSpec& op, const Model& m) {
+  if (op.workspace == kLinear) return kLinearWorkspace;
+  if (op.workspace == kLinearUnlessMimic) return aba_layout(m);
+  return kFullWorkspace;
+}
+
+int call_convention(const OpSpec& op, const OpCall& c) {
+  for (int k = 0; k < op.n_args; ++k)
+    if (op.args[k].kind == kConvention) return c.choice[k];
+  return kPinocchioConvention;
+}
+
+template <typename T> void check_call(const Model& m, const OpSpec& op, const OpCall& c) {
+  // parameters first (cheap), then the arrays in argument order
+  for (int k = 0; k < op.n_args; ++k) {
+    const ArgSpec& a = op.args[k];
+    switch (a.kind) {
+      case kArray:
+        if (!c.in[k]) bad_param(a, "expected an array, got nothing (null)");
+        break;
+      case kOptionalArray: break;
+      case kReal:
+        if (!(std::fabs(c.real[k]) <= Bounds<T>::input)) {
+          std::ostringstream os;
+          if (std::isfinite(c.real[k]))
+            os << "expected a magnitude of at most " << Bounds<T>::input << " (larger ones overflow), got " << c.real[k];
+          else
+            os << "expected a finite number, got " << c.real[k];
+          bad_param(a, os.str());
+        }
+        break;
+      case kTimeStep: check_time_step(c.real[k], a.name); break;
+      case kFlag:
+        if (c.choice[k] != 0 && c.choice[k] != 1) bad_param(a, "expected 0 or 1, got " + std::to_string(c.choice[k]));
+        break;
+      case kChoice:
+        if (c.choice[k] < 0 || c.choice[k] >= n_choices(a))
+          bad_param(a, "expected a choice index in 0.." + std::to_string(n_choices(a) - 1) + ", got " +
+                           std::to_string(c.choice[k]));
+        break;
+      case kIntegrator:
+        if (c.choice[k] < kEuler || c.choice[k] > kConstantAcceleration)
+          bad_param(a, "expected 0..5 (euler, semi_implicit_euler, midpoint, rk4, trapezoidal, "
+                       "constant_acceleration), got " + std::to_string(c.choice[k]));
+        break;
+      case kConvention: check_convention(c.choice[k]); break;
+    }
+  }
+  const int convention = call_convention(op, c);
+  for (int k = 0; k < op.n_args; ++k) {
+    const ArgSpec& a = op.args[k];
+    if ((a.kind != kArray && a.kind != kOptionalArray) || !c.in[k]) continue;
+    const T* x = static_cast<const T*>(c.in[k]);
+    const long n = arg_values(a, m), samples = c.batched[k] ? c.B : 1;
+    if (a.check == kFiniteValues) {
+      if (finite_values(x, n * samples)) continue;
+      for (long s = 0; s < samples; ++s)
+        if (!finite_values(x + s * n, n)) throw_values(x + s * n, n, label_of(a.name, c.batched[k], s));
+      continue;
+    }
+    // a configuration, or a state [q; qd] whose first nq values are one
+    for (long s = 0; s < samples; ++s) {
+      check_configuration_values(m, x + s * n, a.name, c.batched[k], s, convention);
+      if (n > m.nq && !finite_values(x + s * n, n)) throw_values(x + s * n, n, label_of(a.name, c.batched[k], s));
+    }
+  }
+}
+template void check_call<double>(const Model&, const OpSpec&, const OpCall&);
+template void check_call<float>(const Model&, const OpSpec&, const OpCall&);
+
+void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample) {
+  if (op.failure == kNotPositiveDefinite || singular_joint(m, q) >= 0)
+    throw_not_positive_definite(m, op.name, q, sample);
+  std::ostringstream os;
+  os << op.name << ": a stage of the step overflowed (non-finite state or mass matrix)";
+  if (sample >= 0) os << " at sample " << sample;
+  os << "; reduce dt or the magnitudes of qd and u";
+  throw std::runtime_error(os.str());
+}
+
+template <typename T> void check_outputs(const Model& m, const OpSpec& op, const OpCall& c) {
+  for (int o = 0; o < op.n_out; ++o) {
+    if (!c.out[o]) continue;
+    const T* x = static_cast<const T*>(c.out[o]);
+    const long n = c.B * out_values(op.out[o], m);
+    bool ok = true;
+    for (long k = 0; k < n; ++k) ok &= std::isfinite(x[k]);
+    if (ok) continue;
+    for (long k = 0; k < n; ++k)
+      if (!std::isfinite(x[k])) {
+        std::ostringstream os;
+        os << op.name << ": the result " << op.out[o].name << " is not finite (" << x[k] << " at flat index " << k
+           << "): the computation overflowed; reduce the inputs' magnitudes (or dt)";
+        throw std::runtime_error(os.str());
+      }
+  }
+}
+template void check_outputs<double>(const Model&, const OpSpec&, const OpCall&);
+template void check_outputs<float>(const Model&, const OpSpec&, const OpCall&);
+
+void run_serial(const Model& m, const OpEntry& e, const OpCall& c, Workspace<double>& w, double* scratch) {
+  const OpSpec& op = *e.spec;
+  const ModelView<double> mv = m.view();
+  long in_step[kMaxArgs], out_step[kMaxOutputs];
+  OpArgs<double> a;
+  for (int k = 0; k < op.n_args; ++k) {
+    a.in[k] = static_cast<const double*>(c.in[k]);
+    a.real[k] = c.real[k];
+    a.choice[k] = c.choice[k];
+    in_step[k] = c.in[k] && c.batched[k] ? arg_values(op.args[k], m) : 0;
+  }
+  for (int o = 0; o < op.n_out; ++o) out_step[o] = out_values(op.out[o], m);
+  a.scratch = scratch;
+  for (long s = 0; s < c.B; ++s) {
+    for (int k = 0; k < op.n_args; ++k)
+      if (c.in[k]) a.in[k] = static_cast<const double*>(c.in[k]) + s * in_step[k];
+    for (int o = 0; o < op.n_out; ++o) a.out[o] = c.out[o] ? static_cast<double*>(c.out[o]) + s * out_step[o] : nullptr;
+    if (!e.run(mv, w, a)) throw_failure(m, op, a.in[0], c.B > 1 ? s : -1);
+  }
+  check_outputs<double>(m, op, c);
+}
+
+}  // namespace ops
+}  // namespace rbd

@@ -1,0 +1,262 @@
+// The operation registry (include/rbdkit/ops/): every registered operation,
+// on every test model, through rbd::Handle's serial loop (against the
+// checked batch:: entry points where one exists), the engine in float64
+// (equal to the serial loop, bit-identical whatever the thread count) and
+// float32 (within the family's bound), with broadcast inputs and f_ext.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "rbdkit/derivatives_api.hpp"
+#include "rbdkit/dynamics.hpp"
+#include "rbdkit/handle.hpp"
+#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/ops/registry.hpp"
+#include "rbdkit/ops/table.hpp"
+#include "test_models.hpp"
+
+using rbd::Model;
+using rbd_test::max_rel_err;
+using rbd_test::ModelCase;
+namespace ops = rbd::ops;
+
+namespace {
+
+// one call's inputs: arrays of B samples (a configuration drawn by integrate
+// from the neutral one), parameters at their defaults (dt = 0.01)
+struct Inputs {
+  long B;
+  std::vector<std::vector<double>> arrays;  // per argument (empty for a parameter)
+  ops::OpCall call;
+};
+
+Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed, bool with_fext) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(-1, 1);
+  Inputs in{B, std::vector<std::vector<double>>(op.n_args), {}};
+  in.call.B = B;
+  const std::vector<double> q0 = m.neutral();
+  std::vector<double> dv(m.nv);
+  for (int k = 0; k < op.n_args; ++k) {
+    const ops::ArgSpec& a = op.args[k];
+    if (a.kind == ops::kArray || a.kind == ops::kOptionalArray) {
+      if (a.kind == ops::kOptionalArray && a.shape.d[0] == ops::kNb && !with_fext) continue;
+      const long n = ops::arg_values(a, m);
+      std::vector<double>& x = in.arrays[k];
+      x.resize(B * n);
+      for (long s = 0; s < B; ++s) {
+        double* xs = x.data() + s * n;
+        for (long j = 0; j < n; ++j) xs[j] = (a.shape.d[0] == ops::kNb ? 0.3 : 1.0) * U(rng);
+        if (a.check == ops::kConfiguration) {  // a configuration (the state's first nq values)
+          for (double& d : dv) d = U(rng);
+          rbd::integrate(m.view(), q0.data(), dv.data(), xs);
+        }
+      }
+      in.call.in[k] = x.data();
+      in.call.batched[k] = true;
+    } else if (a.kind == ops::kTimeStep) {
+      in.call.real[k] = 0.01;
+    } else if (a.kind == ops::kReal) {
+      in.call.real[k] = a.value;
+    } else {
+      in.call.choice[k] = static_cast<int>(a.value);
+    }
+  }
+  return in;
+}
+
+// runs `op` on a handle; the outputs per sample concatenated, in T
+template <typename T> std::vector<double> run(rbd::Handle& h, int id, const Inputs& in64) {
+  const Model& m = h.model();
+  const ops::OpSpec& op = *ops::op_table()[id].spec;
+  ops::OpCall c = in64.call;
+  std::vector<std::vector<T>> ins(op.n_args);
+  for (int k = 0; k < op.n_args; ++k)
+    if (c.in[k]) ins[k].assign(in64.arrays[k].begin(), in64.arrays[k].end()), c.in[k] = ins[k].data();
+  std::vector<std::vector<T>> outs(op.n_out);
+  long w = 0;
+  for (int o = 0; o < op.n_out; ++o) {
+    outs[o].assign(in64.B * ops::out_values(op.out[o], m), T(-1));
+    c.out[o] = outs[o].data();
+    w += ops::out_values(op.out[o], m);
+  }
+  h.run(id, c);
+  std::vector<double> r;
+  r.reserve(in64.B * w);
+  for (long s = 0; s < in64.B; ++s)
+    for (int o = 0; o < op.n_out; ++o) {
+      const long n = ops::out_values(op.out[o], m);
+      r.insert(r.end(), outs[o].begin() + s * n, outs[o].begin() + (s + 1) * n);
+    }
+  return r;
+}
+
+long sample_width(const Model& m, const ops::OpSpec& op) {
+  long w = 0;
+  for (int o = 0; o < op.n_out; ++o) w += ops::out_values(op.out[o], m);
+  return w;
+}
+
+std::vector<double> sample_of(const std::vector<double>& all, long w, long s) {
+  return std::vector<double>(all.begin() + s * w, all.begin() + (s + 1) * w);
+}
+
+// float32 against float64, per family: M⁻¹ and what is built on it carry
+// cond(M)·ε_float32 (docs/engine.md)
+double float32_bound(const ops::OpSpec& op) {
+  const std::string f = op.family;
+  return f == "minv" || f == "aba_derivatives" || f == "integrators" ? 2e-3 : 1e-4;
+}
+
+class RegistryModels : public ::testing::TestWithParam<ModelCase> {};
+
+}  // namespace
+
+TEST(Registry, TableFollowsTheList) {
+  ASSERT_EQ(static_cast<int>(ops::op_table().size()), ops::AllOps::size);
+  for (const ops::OpEntry& e : ops::op_table()) {
+    EXPECT_EQ(ops::find_op(e.spec->name), e.id);
+    EXPECT_NE(rbd::algorithm_of(e.spec->name), "") << e.spec->name << " is in no handle algorithm";
+    EXPECT_EQ(rbd::algorithm_of(e.spec->name), e.spec->algorithm) << e.spec->name;
+    EXPECT_LE(e.spec->n_args, ops::kMaxArgs);
+    EXPECT_NE(e.spec->returns, 0u);
+  }
+  EXPECT_EQ(ops::find_op("no_such_operation"), -1);
+}
+
+// the serial loop against the checked batch:: entry points (tested against Pinocchio)
+TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
+  const ModelCase& mc = GetParam();
+  const Model m = Model::from_urdf_file(mc.path, mc.floating);
+  rbd::Handle h(m);
+  const long B = 3;
+  for (const char* name : {"inverse_dynamics", "crba", "minv", "aba", "forward_dynamics", "inverse_dynamics_gradient",
+                           "integrate", "integrator"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    const ops::OpSpec& op = *ops::op_table()[id].spec;
+    const Inputs in = make_inputs(m, op, B, 3, true);
+    const std::vector<double> got = run<double>(h, id, in);
+    const long w = sample_width(m, op), nv = m.nv;
+    std::vector<double> ref(B * w), tau(B * nv), v(B * m.nb() * 6), a(B * m.nb() * 6), f(B * m.nb() * 6);
+    auto in_of = [&](int k) { return in.arrays[k].empty() ? nullptr : in.arrays[k].data(); };
+    const std::string n = name;
+    if (n == "inverse_dynamics") {
+      rbd::batch::inverse_dynamics(m, B, in_of(0), in_of(1), in_of(2), in_of(4), -9.81, tau.data(), v.data(), a.data(),
+                                   f.data());
+      for (long s = 0; s < B; ++s) {
+        double* r = ref.data() + s * w;
+        std::copy_n(tau.data() + s * nv, nv, r);
+        std::copy_n(v.data() + s * m.nb() * 6, m.nb() * 6, r + nv);
+        std::copy_n(a.data() + s * m.nb() * 6, m.nb() * 6, r + nv + m.nb() * 6);
+        std::copy_n(f.data() + s * m.nb() * 6, m.nb() * 6, r + nv + 12 * m.nb());
+      }
+    } else if (n == "crba") {
+      rbd::batch::crba(m, B, in_of(0), ref.data());
+    } else if (n == "minv") {
+      rbd::batch::minv(m, B, in_of(0), true, ref.data());
+    } else if (n == "aba") {
+      rbd::batch::aba(m, B, in_of(0), in_of(1), in_of(2), in_of(3), -9.81, ref.data());
+    } else if (n == "forward_dynamics") {
+      rbd::batch::forward_dynamics(m, B, in_of(0), in_of(1), in_of(2), in_of(3), -9.81, ref.data());
+    } else if (n == "inverse_dynamics_gradient") {
+      rbd::batch::inverse_dynamics_gradient(m, B, in_of(0), in_of(1), in_of(2), in_of(4), -9.81, ref.data());
+    } else if (n == "integrate") {
+      rbd::batch::integrate(m, B, in_of(0), in_of(1), ref.data());
+    } else {
+      rbd::batch::integrator(m, B, in_of(0), in_of(1), in_of(2), in_of(5), 0.01, -9.81, rbd::kEuler, ref.data());
+    }
+    EXPECT_LE(max_rel_err(got, ref), 1e-14);
+  }
+}
+
+// every registered operation on the engine: float64 equal to the serial loop
+// (bit-identical whatever the thread count), float32 within its family's
+// bound; f_ext taken; an unbatched input broadcast
+TEST_P(RegistryModels, EngineEqualsSerialLoop) {
+  const ModelCase& mc = GetParam();
+  const Model m = Model::from_urdf_file(mc.path, mc.floating);
+  rbd::Handle serial(m), e1(m, {}, 1), e2(m, {}, 2), f32(m, {}, 2, "float32");
+  const long B = 11;
+  for (const ops::OpEntry& e : ops::op_table()) {
+    const ops::OpSpec& op = *e.spec;
+    SCOPED_TRACE(op.name);
+    const Inputs in = make_inputs(m, op, B, 5, true);
+    const long w = sample_width(m, op);
+    const std::vector<double> ref = run<double>(serial, e.id, in);
+    const std::vector<double> r1 = run<double>(e1, e.id, in), r2 = run<double>(e2, e.id, in);
+    ASSERT_EQ(r1.size(), r2.size());
+    EXPECT_EQ(std::memcmp(r1.data(), r2.data(), r1.size() * sizeof(double)), 0) << "1 and 2 threads differ";
+    // the engine's sin and cos are within an ulp of libm's; M⁻¹ amplifies that by cond(M)
+    const double tol = float32_bound(op) > 1e-4 ? 1e-8 : 1e-11;
+    for (long s = 0; s < B; ++s) EXPECT_LE(max_rel_err(sample_of(r1, w, s), sample_of(ref, w, s)), tol) << "sample " << s;
+    const std::vector<double> r32 = run<float>(f32, e.id, in);
+    for (long s = 0; s < B; ++s)
+      EXPECT_LE(max_rel_err(sample_of(r32, w, s), sample_of(ref, w, s)), float32_bound(op)) << "float32 sample " << s;
+    // the first array unbatched: every sample sees sample 0's values
+    Inputs bc = in;
+    bc.call.batched[0] = false;
+    const std::vector<double> rb = run<double>(e2, e.id, bc), rs = run<double>(serial, e.id, bc);
+    for (long s = 0; s < B; ++s) {
+      Inputs one = in;
+      one.call.B = 1;
+      one.B = 1;
+      for (int k = 1; k < op.n_args; ++k)
+        if (one.call.in[k]) one.call.in[k] = in.arrays[k].data() + s * ops::arg_values(op.args[k], m);
+      const std::vector<double> r = run<double>(serial, e.id, one);
+      EXPECT_LE(max_rel_err(sample_of(rs, w, s), r), 0.0) << "serial broadcast, sample " << s;
+      EXPECT_LE(max_rel_err(sample_of(rb, w, s), r), tol) << "engine broadcast, sample " << s;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, RegistryModels, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
+
+TEST(Registry, ChecksNameTheArgumentAndSample) {
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true);
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "";
+  };
+  for (const char* dtype : {"float64", "float32"}) {
+    rbd::Handle h(m, {}, 0, dtype);
+    const int id = ops::find_op("aba");
+    Inputs in = make_inputs(m, *ops::op_table()[id].spec, 2, 1, false);
+    auto run_any = [&](const Inputs& x) {
+      if (std::string(dtype) == "float64") run<double>(h, id, x);
+      else run<float>(h, id, x);
+    };
+    Inputs bad = in;
+    bad.arrays[0][m.nq + 3] = 2.0;  // sample 1's free-flyer quaternion
+    bad.call.in[0] = bad.arrays[0].data();
+    EXPECT_NE(message([&] { run_any(bad); }).find("q[1]: the quaternion of joint 'root_joint'"), std::string::npos);
+    bad = in;
+    bad.arrays[1][m.nv + 2] = std::nan("");
+    bad.call.in[1] = bad.arrays[1].data();
+    EXPECT_EQ(message([&] { run_any(bad); }).rfind("qd[1]: expected finite values, got nan at flat index 2", 0), 0u);
+    bad = in;
+    bad.arrays[2][1] = 1e20;  // beyond float32's bound, within float64's
+    bad.call.in[2] = bad.arrays[2].data();
+    const std::string msg = message([&] { run_any(bad); });
+    if (std::string(dtype) == "float32") EXPECT_EQ(msg.rfind("tau[0]: expected values of magnitude at most 1e+15", 0), 0u) << msg;
+    else EXPECT_EQ(msg, "");
+    bad = in;
+    bad.call.real[4] = std::nan("");
+    EXPECT_EQ(message([&] { run_any(bad); }).rfind("gravity: expected a finite number", 0), 0u);
+  }
+  // an operation the handle was not built with names the algorithm to add
+  rbd::Handle only_crba(m, {"crba"});
+  EXPECT_FALSE(only_crba.has("aba"));
+  EXPECT_TRUE(only_crba.has("crba"));
+  const int id = ops::find_op("aba");
+  const Inputs in = make_inputs(m, *ops::op_table()[id].spec, 1, 1, false);
+  EXPECT_EQ(message([&] { run<double>(only_crba, id, in); }).rfind("aba: this handle was not built with it", 0), 0u);
+}
