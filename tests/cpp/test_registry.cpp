@@ -76,7 +76,11 @@ template <typename T> std::vector<double> run(rbd::Handle& h, int id, const Inpu
   ops::OpCall c = in64.call;
   std::vector<std::vector<T>> ins(op.n_args);
   for (int k = 0; k < op.n_args; ++k)
-    if (c.in[k]) ins[k].assign(in64.arrays[k].begin(), in64.arrays[k].end()), c.in[k] = ins[k].data();
+    if (c.in[k]) {  // from where the call's pointer is (a sample of the arrays)
+      const auto from = in64.arrays[k].begin() + (static_cast<const double*>(c.in[k]) - in64.arrays[k].data());
+      ins[k].assign(from, in64.arrays[k].end());
+      c.in[k] = ins[k].data();
+    }
   std::vector<std::vector<T>> outs(op.n_out);
   long w = 0;
   for (int o = 0; o < op.n_out; ++o) {
@@ -199,14 +203,16 @@ TEST_P(RegistryModels, EngineEqualsSerialLoop) {
       EXPECT_LE(max_rel_err(sample_of(r32, w, s), sample_of(ref, w, s)), float32_bound(op)) << "float32 sample " << s;
     // the first array unbatched: every sample sees sample 0's values
     Inputs bc = in;
+    for (int k = 0; k < op.n_args; ++k)
+      if (bc.call.in[k]) bc.call.in[k] = bc.arrays[k].data();
     bc.call.batched[0] = false;
     const std::vector<double> rb = run<double>(e2, e.id, bc), rs = run<double>(serial, e.id, bc);
     for (long s = 0; s < B; ++s) {
       Inputs one = in;
       one.call.B = 1;
       one.B = 1;
-      for (int k = 1; k < op.n_args; ++k)
-        if (one.call.in[k]) one.call.in[k] = in.arrays[k].data() + s * ops::arg_values(op.args[k], m);
+      for (int k = 0; k < op.n_args; ++k)
+        if (one.call.in[k]) one.call.in[k] = one.arrays[k].data() + (k ? s * ops::arg_values(op.args[k], m) : 0);
       const std::vector<double> r = run<double>(serial, e.id, one);
       EXPECT_LE(max_rel_err(sample_of(rs, w, s), r), 0.0) << "serial broadcast, sample " << s;
       EXPECT_LE(max_rel_err(sample_of(rb, w, s), r), tol) << "engine broadcast, sample " << s;
