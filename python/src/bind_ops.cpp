@@ -393,15 +393,21 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   (void)err;
   if (err_type) return fail(err_type, msg);
 
-  // ---- results: one array, or a tuple in output order
+  // ---- results: one array, or a tuple in output order; a 0-d one (a
+  // scalar output of an unbatched call) as a NumPy scalar
+  auto result = [](PyObject* a) {
+    Py_INCREF(a);
+    return PyArray_NDIM(reinterpret_cast<PyArrayObject*>(a)) == 0 ? PyArray_Return(reinterpret_cast<PyArrayObject*>(a))
+                                                                  : a;
+  };
   if (nret == 1) {
     for (int o = 0; o < op.n_out; ++o)
-      if (outs[o]) return Py_NewRef(outs[o]);
+      if (outs[o]) return result(outs[o]);
   }
   PyObject* t = PyTuple_New(nret);
   if (!t) return nullptr;
   for (int o = 0, j = 0; o < op.n_out; ++o)
-    if (outs[o]) PyTuple_SET_ITEM(t, j++, Py_NewRef(outs[o]));
+    if (outs[o]) PyTuple_SET_ITEM(t, j++, result(outs[o]));
   return t;
 }
 

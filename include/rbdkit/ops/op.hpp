@@ -36,6 +36,7 @@ struct Shape {
   int rank;
   int d[kMaxRank];
 };
+constexpr Shape scalar() { return {0, {0, 0, 0}}; }  // one value per sample
 constexpr Shape shape(int a) { return {1, {a, 0, 0}}; }
 constexpr Shape shape(int a, int b) { return {2, {a, b, 0}}; }
 constexpr Shape shape(int a, int b, int c) { return {3, {a, b, c}}; }
