@@ -394,118 +394,83 @@ int Engine::simd_width() const { return impl_->W; }
 const Model& Engine::model() const { return impl_->model; }
 unsigned long Engine::workspace_bytes() const { return impl_->workspace_bytes(); }
 
+// ---- the typed entry points: registered operations (ops/registry.hpp)
+namespace {
+template <typename T> struct Call : ops::OpCall {
+  explicit Call(long b) { B = b; }
+  Call& input(int k, const T* p) { in[k] = p, batched[k] = true; return *this; }
+  Call& output(int k, T* p) { out[k] = p; return *this; }
+};
+template <typename Op> constexpr int id_of() { return ops::index_of<Op>(ops::AllOps{}); }
+}  // namespace
+
 template <typename T>
 void Engine::inverse_dynamics(long B, const T* q, const T* qd, const T* qdd, T gravity, T* tau) {
-  auto& e = impl_as<T>(impl_.get(), "inverse_dynamics");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
-    rnea(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
-    return true;
-  };
-  e.run("inverse_dynamics", B, {{q, nq}, {qd, nv}, {qdd, nv}}, {{tau, nv}}, 0, k, kLinearWorkspace);
+  impl_as<T>(impl_.get(), "inverse_dynamics");  // the engine's dtype only
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, qdd).output(0, tau).real[3] = gravity;
+  run_op(id_of<ops::InverseDynamics>(), c);
 }
 
 template <typename T> void Engine::crba(long B, const T* q, T* M) {
-  auto& e = impl_as<T>(impl_.get(), "crba");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
-    rbd::crba(m, w, in[0], out[0]);
-    return true;
-  };
-  e.run("crba", B, {{q, nq}}, {{M, long(nv) * nv}}, 0, k);
+  impl_as<T>(impl_.get(), "crba");  // the engine's dtype only
+  run_op(id_of<ops::Crba>(), Call<T>(B).input(0, q).output(0, M));
 }
 
 template <typename T> void Engine::minv(long B, const T* q, T* Minv) {
-  auto& e = impl_as<T>(impl_.get(), "minv");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  auto k = [](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
-    return rbd::minv(m, w, in[0], true, out[0]);
-  };
-  e.run("minv", B, {{q, nq}}, {{Minv, long(nv) * nv}}, 0, k);
+  impl_as<T>(impl_.get(), "minv");  // the engine's dtype only
+  Call<T> c(B);
+  c.input(0, q).output(0, Minv).choice[1] = 1;  // dense
+  run_op(id_of<ops::Minv>(), c);
 }
 
 template <typename T>
 void Engine::forward_dynamics(long B, const T* q, const T* qd, const T* tau, T gravity, T* qdd) {
-  auto& e = impl_as<T>(impl_.get(), "forward_dynamics");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
-    return aba(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0]);
-  };
-  e.run("forward_dynamics", B, {{q, nq}, {qd, nv}, {tau, nv}}, {{qdd, nv}}, 0, k, aba_layout(e.model));
+  impl_as<T>(impl_.get(), "forward_dynamics");  // the engine's dtype only
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, tau).output(0, qdd).real[4] = gravity;
+  run_op(id_of<ops::Aba>(), c);
 }
 
 template <typename T>
 void Engine::inverse_dynamics_gradient(long B, const T* q, const T* qd, const T* qdd, T gravity, T* dtau_dq,
                                        T* dtau_dqd) {
-  auto& e = impl_as<T>(impl_.get(), "inverse_dynamics_gradient");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity);
-  auto k = [g](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P*) RBD_ENGINE_KERNEL {
-    rnea_derivatives(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, out[0], out[1]);
-    return true;
-  };
-  e.run("inverse_dynamics_gradient", B, {{q, nq}, {qd, nv}, {qdd, nv}}, {{dtau_dq, long(nv) * nv}, {dtau_dqd, long(nv) * nv}},
-        0, k);
+  impl_as<T>(impl_.get(), "inverse_dynamics_gradient");  // the engine's dtype only
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, qdd).output(1, dtau_dq).output(2, dtau_dqd).real[3] = gravity;
+  run_op(id_of<ops::InverseDynamicsGradient>(), c);
 }
 
 template <typename T>
 void Engine::forward_dynamics_gradient(long B, const T* q, const T* qd, const T* tau, T gravity, T* dqdd_dq,
                                        T* dqdd_dqd, T* Minv) {
-  auto& e = impl_as<T>(impl_.get(), "forward_dynamics_gradient");
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity);
-  auto k = [g, nv](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
-    if (!aba_derivatives(m, w, in[0], in[1], in[2], static_cast<const P*>(nullptr), g, scratch, out[0], out[1]))
-      return false;
-    if (out[2]) {
-      if (m.has_mimic) return rbd::minv(m, w, in[0], true, out[2]);  // w.dense holds a Cholesky factor there
-      for (long i = 0; i < long(nv) * nv; ++i) out[2][i] = w.dense[i];
-    }
-    return true;
-  };
-  e.run("forward_dynamics_gradient", B, {{q, nq}, {qd, nv}, {tau, nv}},
-        {{dqdd_dq, long(nv) * nv}, {dqdd_dqd, long(nv) * nv}, {Minv, long(nv) * nv}}, nv, k);
+  impl_as<T>(impl_.get(), "forward_dynamics_gradient");  // the engine's dtype only
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, tau).output(0, dqdd_dq).output(1, dqdd_dqd).output(3, Minv).real[4] = gravity;
+  run_op(id_of<ops::ForwardDynamicsGradient>(), c);
 }
 
 template <typename T>
 void Engine::integrator(long B, const T* q, const T* qd, const T* u, T dt, T gravity, int type, T* x) {
-  auto& e = impl_as<T>(impl_.get(), "integrator");
+  impl_as<T>(impl_.get(), "integrator");  // the engine's dtype only
   check_type("integrator", type);
   check_dt("integrator", dt);
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity), h(dt);
-  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
-    return integrator_step(m, w, type, in[0], in[1], in[2], static_cast<const P*>(nullptr), h, g, out[0],
-                           out[0] + nq, scratch);
-  };
-  e.run("integrator", B, {{q, nq}, {qd, nv}, {u, nv}}, {{x, nq + nv}}, integrator_scratch_values(nq, nv), k,
-        aba_layout(e.model));  // every explicit step runs on aba
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, u).output(0, x);
+  c.real[3] = dt, c.choice[4] = type, c.real[6] = gravity;
+  run_op(id_of<ops::Integrator>(), c);
 }
 
 template <typename T>
 void Engine::integrator_gradient(long B, const T* q, const T* qd, const T* u, T dt, T gravity, int type, T* x,
                                  T* AB) {
-  auto& e = impl_as<T>(impl_.get(), "integrator_gradient");
+  impl_as<T>(impl_.get(), "integrator_gradient");  // the engine's dtype only
   check_type("integrator_gradient", type);
   check_dt("integrator_gradient", dt);
-  using P = typename EngineT<T>::P;
-  const int nq = e.model.nq, nv = e.model.nv;
-  const P g(gravity), h(dt);
-  auto k = [g, h, type, nq](const ModelView<P>& m, Workspace<P>& w, P* const* in, P* const* out, P* scratch) RBD_ENGINE_KERNEL {
-    return rbd::integrator_gradient(m, w, type, in[0], in[1], in[2], static_cast<const P*>(nullptr), h, g, out[0],
-                                    out[0] + nq, out[1], scratch);
-  };
-  e.run("integrator_gradient", B, {{q, nq}, {qd, nv}, {u, nv}}, {{x, nq + nv}, {AB, 6L * nv * nv}},
-        integrator_gradient_scratch_values(nq, nv), k);
+  Call<T> c(B);
+  c.input(0, q).input(1, qd).input(2, u).output(0, x).output(1, AB);
+  c.real[3] = dt, c.choice[4] = type, c.real[6] = gravity;
+  run_op(id_of<ops::IntegratorGradient>(), c);
 }
 
 void Engine::run_op(int op, const ops::OpCall& call) {
@@ -519,6 +484,7 @@ void Engine::run_op(int op, const ops::OpCall& call) {
   if (impl_->dtype == "float64") op_routes<double>(ops::AllOps{})[op](impl_as<double>(impl_.get(), what), call);
   else op_routes<float>(ops::AllOps{})[op](impl_as<float>(impl_.get(), what), call);
 }
+
 
 #define RBD_ENGINE_INSTANTIATE(T)                                                                              \
   template void Engine::inverse_dynamics<T>(long, const T*, const T*, const T*, T, T*);                       \

@@ -201,11 +201,16 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
                              "to its algorithms")
         if ddp and hasattr(handle, "has") and not handle.has("plant_step_hessian"):
             raise ValueError("handle: ddp=True needs plant_step_hessian; add 'plant_step_hessian' to its algorithms")
-        grad = lambda X, U: np.ascontiguousarray(
-            handle.plant_step_gradient(X, U, dt, integrator_type, gravity=gravity), dtype=np.float64)
-        if ddp:
-            hess = lambda X, U: np.ascontiguousarray(
-                handle.plant_step_hessian(X, U, dt, integrator_type, gravity=gravity), dtype=np.float64)
+        if isinstance(handle, Handle) and handle.dtype == np.float64 and handle._routable():
+            # an rbdkit.Handle's derivatives are the C++ handle's: the solver
+            # builds one with its threads (no round trip through Python)
+            opts["threads"] = handle.threads
+        else:
+            grad = lambda X, U: np.ascontiguousarray(
+                handle.plant_step_gradient(X, U, dt, integrator_type, gravity=gravity), dtype=np.float64)
+            if ddp:
+                hess = lambda X, U: np.ascontiguousarray(
+                    handle.plant_step_hessian(X, U, dt, integrator_type, gravity=gravity), dtype=np.float64)
     if callback is not None and not callable(callback):
         raise TypeError(f"callback: expected a callable, got {type(callback).__name__}")
     d = _core.solve_trajectory(model._core, problem, opts, U_init, X_init, K_init, grad, hess, callback)

@@ -160,7 +160,7 @@ void bind_solver(nb::module_& m) {
         if (p.com) algos.push_back("com_cost");
         rbd::SolverResult r;
         {
-          rbd::Handle h(model, algos);
+          rbd::Handle h(model, algos, get<int>(opts, "threads", 0));  // threads: an rbdkit.Handle's
           std::unique_ptr<rbd::HandleSteps> steps;
           if (py_grad.is_none())
             steps = std::make_unique<rbd::HandleSteps>(h, p.dt, p.integrator, p.gravity);

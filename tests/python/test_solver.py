@@ -135,6 +135,21 @@ def test_derivatives_come_from_the_handle(iiwa, default_solution):
     assert res.iterations == ref.iterations
 
 
+def test_an_rbdkit_handle_stays_in_cpp(iiwa, default_solution):
+    # an rbdkit.Handle (float64) gives its threads to the solver's C++ handle:
+    # no derivative goes through Python, and the iterates are the C++ handle's
+    _, ref = default_solution
+    h = rbdkit.Handle(iiwa, algorithms=["integrator_gradient"], threads=2)
+
+    def boom(*a, **k):
+        raise AssertionError("the solver called the Python handle")
+
+    h.plant_step_gradient = boom
+    _, res = reach(iiwa, handle=h)
+    np.testing.assert_allclose(res.U, ref.U, rtol=0, atol=1e-9 * np.abs(ref.U).max())
+    assert res.iterations == ref.iterations and res.derivative_knots == ref.derivative_knots
+
+
 def test_the_handle_derivatives_are_used(iiwa):
     """a handle returning wrong derivatives changes what the solver does"""
     class Wrong(CountingHandle):

@@ -25,6 +25,8 @@
 #include "../configuration.hpp"
 #include "op.hpp"
 
+#include <type_traits>
+
 namespace rbd {
 namespace ops {
 
@@ -142,14 +144,17 @@ struct InverseDynamicsGradient {
       5,
       {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
        real("gravity", kGravity), optional_array("f_ext", shape(kNb, 6))},
-      1, {{"dtau", shape(kNv, k2Nv)}}, 0b1, 0, kFull, kScratch2NvNv, kNotPositiveDefinite};
+      3, {{"dtau", shape(kNv, k2Nv)}, {"dtau_dq", shape(kNv, kNv)}, {"dtau_dqd", shape(kNv, kNv)}},
+      0b001, 0, kFull, kScratch2NvNv, kNotPositiveDefinite};
+  // dtau = [dtau_dq | dtau_dqd]; the halves alone when asked for them (Engine::inverse_dynamics_gradient)
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     const int nv = m.nv;
-    S* dq = a.scratch;
-    S* dv = a.scratch + nv * nv;
+    S* dq = a.out[1] ? a.out[1] : a.scratch;
+    S* dv = a.out[2] ? a.out[2] : a.scratch + nv * nv;
     rnea_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], dq, dv);
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) a.out[0][r * 2 * nv + c] = dq[r * nv + c], a.out[0][r * 2 * nv + nv + c] = dv[r * nv + c];
+    if (a.out[0])
+      for (int r = 0; r < nv; ++r)
+        for (int c = 0; c < nv; ++c) a.out[0][r * 2 * nv + c] = dq[r * nv + c], a.out[0][r * 2 * nv + nv + c] = dv[r * nv + c];
     return true;
   }
 };
@@ -162,11 +167,17 @@ struct ForwardDynamicsGradient {
       5,
       {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("u", shape(kNv)),
        optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
-      3, {{"dqdd_dq", shape(kNv, kNv)}, {"dqdd_dqd", shape(kNv, kNv)}, {"qdd", shape(kNv)}},
-      0b011, 0, kFull, kScratchNv, kNotPositiveDefinite};
+      4, {{"dqdd_dq", shape(kNv, kNv)}, {"dqdd_dqd", shape(kNv, kNv)}, {"qdd", shape(kNv)}, {"Minv", shape(kNv, kNv)}},
+      0b0011, 0, kFull, kScratchNv, kNotPositiveDefinite};
+  // M⁻¹ too when asked for it (computed on the way; Engine::forward_dynamics_gradient)
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     S* qdd = a.out[2] ? a.out[2] : a.scratch;
-    return aba_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], qdd, a.out[0], a.out[1]);
+    if (!aba_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], qdd, a.out[0], a.out[1])) return false;
+    if (a.out[3]) {
+      if (m.has_mimic) return minv(m, w, a.in[0], true, a.out[3]);  // w.dense holds a Cholesky factor there
+      for (long i = 0; i < long(m.nv) * m.nv; ++i) a.out[3][i] = w.dense[i];
+    }
+    return true;
   }
 };
 
@@ -288,6 +299,12 @@ struct PlantStepGradient {
 template <typename... Op> struct OpList {
   static constexpr int size = sizeof...(Op);
 };
+
+// the index of Op in a list (its id in AllOps)
+template <typename Op, typename First, typename... Rest> constexpr int index_of(OpList<First, Rest...>) {
+  if constexpr (std::is_same<Op, First>::value) return 0;
+  else return 1 + index_of<Op>(OpList<Rest...>{});
+}
 
 // every registered operation; an operation's id is its index here
 using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crba, Minv, Aba, ForwardDynamics,
