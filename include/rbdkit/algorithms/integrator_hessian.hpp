@@ -56,15 +56,15 @@ namespace rbd {
 // (SE(3)) and spherical joints whole
 template <typename S>
 RBD_HD bool curved_part(PinocchioStep<S>, const BodyDesc<S>& b, int& type, int& qo, int& vo) {
-  if (b.mimic || (b.type != kFree && b.type != kSpherical)) return false;
+  if (quat_offset(b) < 0) return false;
   type = b.type, qo = b.q_idx, vo = b.v_idx;
   return true;
 }
 // MuJoCo: the quaternion of free and ball joints (a free position is additive)
 template <typename S>
 RBD_HD bool curved_part(MujocoStep<S>, const BodyDesc<S>& b, int& type, int& qo, int& vo) {
-  if (b.mimic || (b.type != kFree && b.type != kSpherical)) return false;
-  const int r = b.type == kFree ? 3 : 0;
+  if (quat_offset(b) < 0) return false;
+  const int r = joint_rot(b.type);
   type = kSpherical, qo = b.q_idx + r, vo = b.v_idx + r;
   return true;
 }
@@ -77,7 +77,7 @@ template <template <typename> class Conv, typename S>
 RBD_HD void joint_retraction_hessian(int type, const S* q0, const S* w, const S* qbar, S* G) {
   using D1 = Dual<S>;
   using D2 = Dual<D1>;
-  const int d = type == kFree ? 6 : 3, nqj = type == kFree ? 7 : 4;
+  const int d = joint_nv(type), nqj = joint_nq(type);
   BodyDesc<D2> b{};
   b.parent = -1;
   b.type = type;
@@ -135,7 +135,7 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
   for (int i = 0; i < m.nb; ++i) {
     int type = 0, qo = 0, o = 0;
     if (!curved_part(Conv<S>{}, m.body[i], type, qo, o)) continue;
-    const int d = type == kFree ? 6 : 3;
+    const int d = joint_nv(type);
     joint_retraction_hessian<Conv>(type, q0 + qo, w + o, qbar + qo, G2);
     for (int r = 0; r < d; ++r)
       for (int c = 0; c < N; ++c) {
