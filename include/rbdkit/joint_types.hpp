@@ -12,7 +12,6 @@
 //                                quaternion in qj and its angular velocity in vj
 //                                (-1: none)
 //   transform(b, q)              X_J(q): the child frame placed in the joint frame
-//   body_transform(b, q)         X_parent_body = X_tree · X_J(q)
 //   subspace_col(b, k)           column k of S (mimic multiplier included)
 //   motion(b, x), project(b, f, out)       S·x (x: nv), Sᵀ·f (out: nv)
 //   integrate(qj, vj, out)       q ⊕ v      (Pinocchio's: out nq)
@@ -62,16 +61,9 @@ template <typename S> RBD_HD void put_mat6(const Mat6<S>& B, S sign, S* J, int n
     for (int c = 0; c < 6; ++c) J[(r0 + r) * nv + r0 + c] = sign * B(r, c);
 }
 
-// what every joint type shares (JT: the type itself)
-template <typename JT> struct JointBase {
-  template <typename S> RBD_HD static Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
-    return b.X_tree * JT::transform(b, q);
-  }
-};
-
 // ---- 1-DoF joints: the manifold R in both conventions (JT: the joint type)
 
-template <typename JT> struct OneDofJoint : JointBase<JT> {
+template <typename JT> struct OneDofJoint {
   static constexpr int nq = 1, nv = 1, rot = -1;
   template <typename S> RBD_HD static Motion<S> motion(const BodyDesc<S>& b, const S* x) {
     return x[0] * JT::subspace_col(b, 0);
@@ -101,11 +93,6 @@ struct RevoluteJoint : OneDofJoint<RevoluteJoint> {
   template <typename S> RBD_HD static Transform<S> transform(const BodyDesc<S>& b, const S* q) {
     return {axis_angle(b.axis, joint_angle(b, q)), Vec3<S>::zero()};
   }
-  // X_tree · X_J with X_J a pure rotation
-  template <typename S> RBD_HD static Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
-    const Transform<S> XJ = transform(b, q);
-    return {b.X_tree.R * XJ.R, b.X_tree.p};
-  }
   template <typename S> RBD_HD static Motion<S> subspace_col(const BodyDesc<S>& b, int) {
     return {Vec3<S>::zero(), b.mult * b.axis};
   }
@@ -134,7 +121,7 @@ struct HelicalJoint : OneDofJoint<HelicalJoint> {
 
 // ---- spherical: SO(3), the local angular velocity
 
-struct SphericalJoint : JointBase<SphericalJoint> {
+struct SphericalJoint {
   static constexpr int nq = 4, nv = 3, rot = 0;
   template <typename S> RBD_HD static Transform<S> transform(const BodyDesc<S>& b, const S* q) {
     return {quat_to_matrix(q + b.q_idx), Vec3<S>::zero()};
@@ -194,7 +181,7 @@ struct SphericalJoint : JointBase<SphericalJoint> {
 
 // ---- free: [p (3), quaternion (4)], the twist [v_lin; w] in the local frame
 
-struct FreeJoint : JointBase<FreeJoint> {
+struct FreeJoint {
   static constexpr int nq = 7, nv = 6, rot = 3;
   template <typename S> RBD_HD static Transform<S> transform(const BodyDesc<S>& b, const S* q) {
     const S* qj = q + b.q_idx;
@@ -321,9 +308,12 @@ template <typename S> RBD_HD Transform<S> joint_transform(const BodyDesc<S>& b, 
   return visit_joint(b.type, [&](auto J) { return J.transform(b, q); });
 }
 
-// X_parent_body = X_tree · X_J(q)
+// X_parent_body = X_tree · X_J(q) (a revolute X_J is a pure rotation); one
+// product after the dispatch keeps the hot forward passes compact
 template <typename S> RBD_HD Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
-  return visit_joint(b.type, [&](auto J) { return J.body_transform(b, q); });
+  const Transform<S> XJ = joint_transform(b, q);
+  if (b.type == kRevolute) return {b.X_tree.R * XJ.R, b.X_tree.p};
+  return b.X_tree * XJ;
 }
 
 // column k of the motion subspace S (mimic multiplier included)
