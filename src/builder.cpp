@@ -137,8 +137,8 @@ int ModelBuilder::add_body(int parent, const JointSpec& joint, const std::string
   check_inertia(I_body, "add_body: body '" + body_name + "'");
   b.X_tree = joint.X_parent_joint;
   b.I = I_body;
-  b.nq = b.type == kFree ? 7 : (b.type == kSpherical ? 4 : 1);
-  b.nv = b.type == kFree ? 6 : (b.type == kSpherical ? 3 : 1);
+  b.nq = joint_nq(b.type);
+  b.nv = joint_nv(b.type);
 
   JointSpec spec = joint;
   spec.type = type;

@@ -72,8 +72,8 @@ void check_configuration(const Model& m, const double* q, const char* arg, long 
   check_joint_angles(m, q, label.c_str());
   for (size_t i = 0; i < m.bodies.size(); ++i) {
     const BodyDesc<double>& b = m.bodies[i];
-    if (b.mimic || (b.type != kFree && b.type != kSpherical)) continue;
-    const int o = b.q_idx + (b.type == kFree ? 3 : 0);
+    const int o = quat_offset(b);  // free and ball joints
+    if (o < 0) continue;
     const double n = std::sqrt(q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2] + q[o + 3] * q[o + 3]);
     if (std::fabs(n - 1.0) > 1e-6) {
       std::ostringstream os;

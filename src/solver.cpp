@@ -339,24 +339,26 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-}  // namespace
+// ---------------------------------------------------------------- the passes
+// solve_trajectory: the checks, the initial rollout, then per iteration the
+// step derivatives, the backward pass, the line search (over rollouts), the
+// damping update and the barrier schedule.
 
-SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, const TrajectoryProblem& p,
-                              const SolverOptions& o, const RowMat& U_init, const RowMat& X_init,
-                              const std::vector<MatrixXd>& K_init) {
-  using clock = std::chrono::steady_clock;
-  const auto t_start = clock::now();
-  // ---- checks and defaults
+// the solver options' checks
+void check_options(const SolverOptions& o) {
   if (o.max_iterations < 0) throw std::invalid_argument("max_iterations: expected a non-negative integer");
   if (!(o.mu_init >= 0 && o.mu_min >= 0 && o.mu_min <= o.mu_init && o.mu_factor > 0 && o.mu_factor < 1))
     throw std::invalid_argument("mu_init, mu_min, mu_factor: expected 0 <= mu_min <= mu_init and 0 < mu_factor < 1");
   if (!(o.reg_min > 0 && o.reg_init >= o.reg_min && o.reg_max > o.reg_init && o.reg_factor > 1))
     throw std::invalid_argument("reg_init, reg_min, reg_max, reg_factor: expected 0 < reg_min <= reg_init < "
                                 "reg_max and reg_factor > 1");
-  const Setup s = make_setup(model, h, p);
-  const int N = s.N, nv = s.nv, nx = s.nx, ndx = s.ndx, nz = 3 * nv;
-  const ModelView<double> mv = model.view();
-  RowMat U = U_init.size() ? U_init : RowMat(s.Uref);
+}
+
+// the warm start's checks: U (U_init, or u_ref at every knot), X_init (empty:
+// open loop), K_init (empty: no feedback)
+void check_warm_start(const Model& model, const Setup& s, const RowMat& U, const RowMat& X_init,
+                      const std::vector<MatrixXd>& K_init) {
+  const int N = s.N, nv = s.nv, nx = s.nx, ndx = s.ndx;
   if (U.rows() != N || U.cols() != nv)
     throw std::invalid_argument("U_init: expected " + shape(N, nv) + " (horizon x nv), got " +
                                 shape(U.rows(), U.cols()));
@@ -378,49 +380,253 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
       if (K.rows() != nv || K.cols() != ndx || !K.allFinite())
         throw std::invalid_argument("K_init: expected finite gains of " + shape(nv, ndx) + " (nv x 2nv)");
   }
+}
+
+// the policy a backward pass leaves: u_k = Ū_k + α k_k + K_k (x_k ⊖ X̄_k)
+struct Policy {
+  std::vector<MatrixXd> K;  // (N) feedback gains (nv x 2nv)
+  RowMat k;                 // (N x nv) feedforward
+};
+
+// what a rollout runs on besides the policy
+struct Plant {
+  const Model& model;
+  ModelView<double> mv;
+  PlantSteps& steps;
+  const VectorXd& x0;  // (NX) the initial state
+  VectorXd dx;         // (2nv) scratch: x ⊖ X̄
+};
+
+// ---- rollout: Xo (N+1 x NX), Uo (N x nv) from x0 under the policy around
+// (Xbar, Ubar) with step α, with its feedback or without (Xbar then unused);
+// false if a state diverges (non-finite or beyond the input bounds)
+bool rollout(Plant& pl, const Policy& pol, const RowMat& Xbar, const RowMat& Ubar, double alpha, bool feedback,
+             RowMat& Xo, RowMat& Uo) {
+  const Model& model = pl.model;
+  const int N = static_cast<int>(pol.k.rows()), nv = model.nv;
+  Xo.row(0) = pl.x0.transpose();
+  for (int k = 0; k < N; ++k) {
+    Uo.row(k) = Ubar.row(k) + alpha * pol.k.row(k);
+    if (feedback) {
+      state_difference(pl.mv, Xbar.row(k).data(), Xo.row(k).data(), pl.dx.data());
+      Uo.row(k) += (pol.K[k] * pl.dx).transpose();
+    }
+    try {
+      pl.steps.step(1, Xo.row(k).data(), Uo.row(k).data(), Xo.row(k + 1).data());
+      // a state beyond the input bounds (dynamics.hpp) has diverged as surely as a non-finite one
+      check_configuration(model, Xo.row(k + 1).data(), "x");
+      check_finite(Xo.row(k + 1).data() + model.nq, nv, "x");
+    } catch (const std::runtime_error&) {
+      return false;  // a diverging trial (e.g. a mass matrix lost to round-off): rejected
+    } catch (const std::invalid_argument&) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// ---- step derivatives at the knots 0..N−1, one batched call per family:
+// AB (N x 2nv x 3nv) and, for DDP, Hs (N x 2nv x 3nv x 3nv); Xk (N x NX) scratch
+void step_derivatives(PlantSteps& steps, const RowMat& X, const RowMat& U, bool ddp, RowMat& Xk,
+                      std::vector<double>& AB, std::vector<double>& Hs) {
+  const long N = U.rows();
+  Xk = X.topRows(N);
+  steps.step_gradient(N, Xk.data(), U.data(), AB.data());
+  if (ddp) steps.step_hessian(N, Xk.data(), U.data(), Hs.data());
+}
+
+// the Levenberg–Marquardt damping λ on Quu and its multiplicative step
+struct Damping {
+  double reg, step;
+  // λ grows: a backward pass met a non-PD Quu + λI, or a line search failed
+  void grow(const SolverOptions& o) {
+    step = std::max(step * o.reg_factor, o.reg_factor);
+    reg = std::max(reg * step, o.reg_min);
+  }
+  // λ shrinks on an accepted step
+  void shrink(const SolverOptions& o) {
+    step = std::min(step / o.reg_factor, 1.0 / o.reg_factor);
+    reg = std::max(reg * step, o.reg_min);
+  }
+  // λ restarts (a new μ)
+  void restart(const SolverOptions& o) { reg = std::max(o.reg_init, o.reg_min), step = 1; }
+};
+
+// the backward pass's buffers, allocated once per solve
+struct Riccati {
+  MatrixXd Qxx, Quu, Qux, Vxx;  // (2nv x 2nv), (nv x nv), (nv x 2nv), (2nv x 2nv)
+  VectorXd Qx, Qu, Vx;          // (2nv), (nv), (2nv)
+};
+
+// what a backward pass predicts: the merit's model decrease along α is
+// −(α d1 + ½ α² d2); gnorm = max_k ‖Qu_k‖∞; pd false when λ passed reg_max
+struct BackwardPass {
+  bool pd;
+  double d1, d2, gnorm;
+};
+
+// ---- backward pass: the Riccati recursion in the tangent space from the cost
+// derivatives c (barriers weighted by μ) and the step derivatives AB, Hs
+// (step_derivatives), with λ on Quu, raised (d.grow) and the pass restarted
+// until Quu + λI is positive definite at every knot. Writes the policy.
+BackwardPass backward_pass(const Setup& s, const CostEval& c, const std::vector<double>& AB,
+                           const std::vector<double>& Hs, double mu, const SolverOptions& o, Damping& d, Riccati& w,
+                           Policy& pol) {
+  const int N = s.N, nv = s.nv, ndx = s.ndx, nz = 3 * nv;
+  MatrixXd &Qxx = w.Qxx, &Quu = w.Quu, &Qux = w.Qux, &Vxx = w.Vxx;
+  VectorXd &Qx = w.Qx, &Qu = w.Qu, &Vx = w.Vx;
+  std::vector<MatrixXd>& K = pol.K;
+  RowMat& kff = pol.k;
+  double d1 = 0, d2 = 0, gnorm = 0;
+  bool pd = false;
+  while (!pd) {
+    Vx = c.lx.row(N).transpose() + mu * c.bx.row(N).transpose();
+    Vxx = c.lxx[N];
+    Vxx.diagonal() += mu * c.bxx.row(N).transpose();
+    d1 = d2 = gnorm = 0;
+    pd = true;
+    for (int k = N - 1; k >= 0; --k) {
+      const Eigen::Map<const RowMat> ABk(AB.data() + static_cast<size_t>(k) * ndx * nz, ndx, nz);
+      const auto A = ABk.leftCols(ndx);
+      const auto Bm = ABk.rightCols(nv);
+      Qx = c.lx.row(k).transpose() + mu * c.bx.row(k).transpose() + A.transpose() * Vx;
+      Qu = c.lu.row(k).transpose() + mu * c.bu.row(k).transpose() + Bm.transpose() * Vx;
+      const MatrixXd VA = Vxx * A, VB = Vxx * Bm;
+      Qxx = c.lxx[k] + A.transpose() * VA;
+      Qxx.diagonal() += mu * c.bxx.row(k).transpose();
+      Quu = Bm.transpose() * VB;
+      Quu.diagonal() += c.luu_diag.row(k).transpose() + mu * c.buu.row(k).transpose();
+      Qux = Bm.transpose() * VA;
+      MatrixXd Qreg = Quu;
+      Qreg.diagonal().array() += d.reg;
+      if (o.ddp) {
+        // + Σ_i V'_x,i H_i: the step's curvature weighted by the cost-to-go gradient; at a
+        // knot where it makes Quu + λI indefinite, that knot keeps the Gauss–Newton terms
+        const double* Hk = Hs.data() + static_cast<size_t>(k) * ndx * nz * nz;
+        MatrixXd Hz = MatrixXd::Zero(nz, nz);
+        for (int i = 0; i < ndx; ++i) Hz += Vx[i] * Eigen::Map<const RowMat>(Hk + static_cast<size_t>(i) * nz * nz, nz, nz);
+        // the whole [Qxx Qxu; Qux Quu] block (+ λI) must stay positive definite
+        MatrixXd Qzz(nz, nz);
+        Qzz << Qxx, Qux.transpose(), Qux, Quu;
+        Qzz += Hz;
+        Qzz.diagonal().array() += d.reg;
+        const MatrixXd Qfull = Qreg + Hz.bottomRightCorner(nv, nv);
+        if (Eigen::LLT<MatrixXd>(Qzz).info() == Eigen::Success) {
+          Qxx += Hz.topLeftCorner(ndx, ndx);
+          Quu += Hz.bottomRightCorner(nv, nv);
+          Qux += Hz.bottomLeftCorner(nv, ndx);
+          Qreg = Qfull;
+        }
+      }
+      Eigen::LLT<MatrixXd> llt(Qreg);
+      if (llt.info() != Eigen::Success) {
+        pd = false;
+        break;
+      }
+      kff.row(k) = -llt.solve(Qu).transpose();
+      K[k] = -llt.solve(Qux);
+      const VectorXd kk = kff.row(k).transpose();
+      gnorm = std::max(gnorm, Qu.cwiseAbs().maxCoeff());
+      d1 += kk.dot(Qu);
+      d2 += kk.dot(Quu * kk);
+      // V = Q minimised over δu
+      Vx = Qx + K[k].transpose() * (Quu * kk) + K[k].transpose() * Qu + Qux.transpose() * kk;
+      Vxx = Qxx + K[k].transpose() * Quu * K[k] + K[k].transpose() * Qux + Qux.transpose() * K[k];
+      Vxx = 0.5 * (Vxx + Vxx.transpose()).eval();
+    }
+    if (!pd) {
+      d.grow(o);
+      if (d.reg > o.reg_max) break;
+    }
+  }
+  return {pd, d1, d2, gnorm};
+}
+
+// an accepted line-search trial: its α (0: none accepted) and merit
+struct Trial {
+  double alpha, merit;
+};
+
+// ---- line search: backtracking α = 1, ½, ¼, … (line_search_steps trials) on
+// the actual merit of a rollout under the policy around (X, U); a trial is
+// accepted when its decrease is at least 1e-4 of the model's (bp), and left in
+// (Xn, Un) with its predicted and actual decrease in rec
+Trial line_search(Plant& pl, Evaluator& ev, const Policy& pol, const RowMat& X, const RowMat& U, double merit,
+                  double mu, const BackwardPass& bp, const SolverOptions& o, RowMat& Xn, RowMat& Un, CostEval& cn,
+                  IterationRecord& rec) {
+  const double d1 = bp.d1, d2 = bp.d2;
+  double alpha = 1, accepted = 0, merit_new = merit;
+  for (int ls = 0; ls < o.line_search_steps; ++ls, alpha *= 0.5) {
+    const double expected = -(alpha * d1 + 0.5 * alpha * alpha * d2);
+    if (!rollout(pl, pol, X, U, alpha, true, Xn, Un)) continue;
+    ev.eval(Xn, Un, false, cn);
+    const double m_new = cn.cost + mu * cn.barrier;
+    if (!std::isfinite(m_new)) continue;
+    const double actual = merit - m_new;
+    if (actual > 1e-4 * expected || (expected <= 0 && actual >= 0)) {
+      accepted = alpha, merit_new = m_new, rec.expected = expected, rec.actual = actual;
+      break;
+    }
+  }
+  return {accepted, merit_new};
+}
+
+// the first μ; no limits: no barrier term, so no μ schedule to run through
+double initial_mu(const TrajectoryProblem& p, const SolverOptions& o) {
+  return p.position_limits || p.velocity_limits || p.torque_limits ? o.mu_init : o.mu_min;
+}
+
+// ---- barrier schedule: when the iterations at this μ stall, μ shrinks by
+// mu_factor down to mu_min, the merit re-weighted (c: the current costs) and λ
+// restarted; true when they stall at mu_min (converged)
+bool barrier_schedule(bool stalled, const SolverOptions& o, const CostEval& c, double& mu, double& merit,
+                      Damping& d) {
+  if (!stalled) return false;
+  if (mu <= o.mu_min) return true;
+  mu = std::max(mu * o.mu_factor, o.mu_min);
+  merit = c.cost + mu * c.barrier;
+  d.restart(o);
+  return false;
+}
+
+// log one iteration and report it to the callback
+void record(SolverResult& r, const SolverOptions& o, const IterationRecord& rec) {
+  r.log.push_back(rec);
+  if (o.callback) o.callback(rec);
+}
+
+}  // namespace
+
+SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, const TrajectoryProblem& p,
+                              const SolverOptions& o, const RowMat& U_init, const RowMat& X_init,
+                              const std::vector<MatrixXd>& K_init) {
+  using clock = std::chrono::steady_clock;
+  const auto t_start = clock::now();
+  // ---- checks and defaults
+  check_options(o);
+  const Setup s = make_setup(model, h, p);
+  const int N = s.N, nv = s.nv, nx = s.nx, ndx = s.ndx, nz = 3 * nv;
+  RowMat U = U_init.size() ? U_init : RowMat(s.Uref);
+  check_warm_start(model, s, U, X_init, K_init);
+  const bool closed_loop = X_init.size() > 0;
 
   SolverResult r;
   Evaluator ev(model, h, p, s);
+  Plant pl{model, model.view(), steps, p.x0, VectorXd(ndx)};
   RowMat X(N + 1, nx), Xn(N + 1, nx), Un(N, nv);
-  std::vector<MatrixXd> K(N, MatrixXd::Zero(nv, ndx));
-  RowMat kff = RowMat::Zero(N, nv);
-  VectorXd dx(ndx);
-
-  // ---- rollout with the policy u = Ū + α k + K (x ⊖ X̄)
-  auto rollout = [&](const RowMat& Xbar, const RowMat& Ubar, double alpha, bool feedback, RowMat& Xo, RowMat& Uo) {
-    Xo.row(0) = p.x0.transpose();
-    for (int k = 0; k < N; ++k) {
-      Uo.row(k) = Ubar.row(k) + alpha * kff.row(k);
-      if (feedback) {
-        state_difference(mv, Xbar.row(k).data(), Xo.row(k).data(), dx.data());
-        Uo.row(k) += (K[k] * dx).transpose();
-      }
-      try {
-        steps.step(1, Xo.row(k).data(), Uo.row(k).data(), Xo.row(k + 1).data());
-        // a state beyond the input bounds (dynamics.hpp) has diverged as surely as a non-finite one
-        check_configuration(model, Xo.row(k + 1).data(), "x");
-        check_finite(Xo.row(k + 1).data() + model.nq, nv, "x");
-      } catch (const std::runtime_error&) {
-        return false;  // a diverging trial (e.g. a mass matrix lost to round-off): rejected
-      } catch (const std::invalid_argument&) {
-        return false;
-      }
-    }
-    return true;
-  };
+  Policy pol{std::vector<MatrixXd>(N, MatrixXd::Zero(nv, ndx)), RowMat::Zero(N, nv)};
 
   // ---- initial rollout (warm start)
-  if (closed_loop && !K_init.empty()) K = K_init;
+  if (closed_loop && !K_init.empty()) pol.K = K_init;
   {
     RowMat Uo(N, nv);
-    const bool ok = rollout(closed_loop ? X_init : RowMat(), U, 0.0, closed_loop && !K_init.empty(), X, Uo);
+    const bool ok = rollout(pl, pol, closed_loop ? X_init : RowMat(), U, 0.0, closed_loop && !K_init.empty(), X, Uo);
     if (!ok) throw std::invalid_argument("U_init: the initial rollout diverges (non-finite or out-of-bounds states)");
     U = Uo;
   }
-  for (auto& Kk : K) Kk.setZero();
+  for (auto& Kk : pol.K) Kk.setZero();
   CostEval c, cn;
-  // no limits: no barrier term, so no μ schedule to run through
-  double mu = p.position_limits || p.velocity_limits || p.torque_limits ? o.mu_init : o.mu_min;
+  double mu = initial_mu(p, o);
   ev.eval(X, U, true, c);
   if (!std::isfinite(c.barrier)) {
     std::ostringstream os;
@@ -433,161 +639,72 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
     IterationRecord rec;
     rec.cost = c.cost, rec.merit = merit, rec.violation = c.violation, rec.mu = mu, rec.reg = o.reg_init;
     rec.time = seconds_since(t_start);
-    r.log.push_back(rec);
-    if (o.callback) o.callback(rec);
+    record(r, o, rec);
   }
 
-  // ---- buffers of the batched derivatives
+  // ---- buffers of the batched derivatives and the backward pass
   std::vector<double> AB(static_cast<size_t>(N) * ndx * nz), Hs;
   if (o.ddp) Hs.resize(static_cast<size_t>(N) * ndx * nz * nz);
   RowMat Xk(N, nx);
-  double reg = o.reg_init, reg_step = 1;
+  Damping damping{o.reg_init, 1};
   bool have_derivatives = false;
-  MatrixXd Qxx(ndx, ndx), Quu(nv, nv), Qux(nv, ndx), Vxx(ndx, ndx);
-  VectorXd Qx(ndx), Qu(nv), Vx(ndx);
+  Riccati w{MatrixXd(ndx, ndx), MatrixXd(nv, nv), MatrixXd(nv, ndx), MatrixXd(ndx, ndx),
+            VectorXd(ndx),      VectorXd(nv),      VectorXd(ndx)};
   r.status = "max_iterations";
 
   for (int it = 1; it <= o.max_iterations; ++it) {
     const auto t_it = clock::now();
     IterationRecord rec;
     rec.iteration = it;
-    // ---- derivatives of the whole trajectory: one batched call per family
+    // ---- derivatives of the whole trajectory (once per accepted trajectory)
     if (!have_derivatives) {
       const auto t_d = clock::now();
-      Xk = X.topRows(N);
-      steps.step_gradient(N, Xk.data(), U.data(), AB.data());
-      if (o.ddp) steps.step_hessian(N, Xk.data(), U.data(), Hs.data());
+      step_derivatives(steps, X, U, o.ddp, Xk, AB, Hs);
       rec.derivatives_time = seconds_since(t_d);
       r.derivative_knots += N;
       have_derivatives = true;
     }
 
-    // ---- backward pass (Riccati in the tangent space) with λ on Quu
-    double d1 = 0, d2 = 0, gnorm = 0;
-    bool pd = false;
-    while (!pd) {
-      Vx = c.lx.row(N).transpose() + mu * c.bx.row(N).transpose();
-      Vxx = c.lxx[N];
-      Vxx.diagonal() += mu * c.bxx.row(N).transpose();
-      d1 = d2 = gnorm = 0;
-      pd = true;
-      for (int k = N - 1; k >= 0; --k) {
-        const Eigen::Map<const RowMat> ABk(AB.data() + static_cast<size_t>(k) * ndx * nz, ndx, nz);
-        const auto A = ABk.leftCols(ndx);
-        const auto Bm = ABk.rightCols(nv);
-        Qx = c.lx.row(k).transpose() + mu * c.bx.row(k).transpose() + A.transpose() * Vx;
-        Qu = c.lu.row(k).transpose() + mu * c.bu.row(k).transpose() + Bm.transpose() * Vx;
-        const MatrixXd VA = Vxx * A, VB = Vxx * Bm;
-        Qxx = c.lxx[k] + A.transpose() * VA;
-        Qxx.diagonal() += mu * c.bxx.row(k).transpose();
-        Quu = Bm.transpose() * VB;
-        Quu.diagonal() += c.luu_diag.row(k).transpose() + mu * c.buu.row(k).transpose();
-        Qux = Bm.transpose() * VA;
-        MatrixXd Qreg = Quu;
-        Qreg.diagonal().array() += reg;
-        if (o.ddp) {
-          // + Σ_i V'_x,i H_i: the step's curvature weighted by the cost-to-go gradient; at a
-          // knot where it makes Quu + λI indefinite, that knot keeps the Gauss–Newton terms
-          const double* Hk = Hs.data() + static_cast<size_t>(k) * ndx * nz * nz;
-          MatrixXd Hz = MatrixXd::Zero(nz, nz);
-          for (int i = 0; i < ndx; ++i) Hz += Vx[i] * Eigen::Map<const RowMat>(Hk + static_cast<size_t>(i) * nz * nz, nz, nz);
-          // the whole [Qxx Qxu; Qux Quu] block (+ λI) must stay positive definite
-          MatrixXd Qzz(nz, nz);
-          Qzz << Qxx, Qux.transpose(), Qux, Quu;
-          Qzz += Hz;
-          Qzz.diagonal().array() += reg;
-          const MatrixXd Qfull = Qreg + Hz.bottomRightCorner(nv, nv);
-          if (Eigen::LLT<MatrixXd>(Qzz).info() == Eigen::Success) {
-            Qxx += Hz.topLeftCorner(ndx, ndx);
-            Quu += Hz.bottomRightCorner(nv, nv);
-            Qux += Hz.bottomLeftCorner(nv, ndx);
-            Qreg = Qfull;
-          }
-        }
-        Eigen::LLT<MatrixXd> llt(Qreg);
-        if (llt.info() != Eigen::Success) {
-          pd = false;
-          break;
-        }
-        kff.row(k) = -llt.solve(Qu).transpose();
-        K[k] = -llt.solve(Qux);
-        const VectorXd kk = kff.row(k).transpose();
-        gnorm = std::max(gnorm, Qu.cwiseAbs().maxCoeff());
-        d1 += kk.dot(Qu);
-        d2 += kk.dot(Quu * kk);
-        // V = Q minimised over δu
-        Vx = Qx + K[k].transpose() * (Quu * kk) + K[k].transpose() * Qu + Qux.transpose() * kk;
-        Vxx = Qxx + K[k].transpose() * Quu * K[k] + K[k].transpose() * Qux + Qux.transpose() * K[k];
-        Vxx = 0.5 * (Vxx + Vxx.transpose()).eval();
-      }
-      if (!pd) {
-        reg_step = std::max(reg_step * o.reg_factor, o.reg_factor);
-        reg = std::max(reg * reg_step, o.reg_min);
-        if (reg > o.reg_max) break;
-      }
-    }
-    rec.reg = reg, rec.mu = mu, rec.grad_norm = gnorm;
-    if (!pd) {
+    // ---- backward pass
+    const BackwardPass bp = backward_pass(s, c, AB, Hs, mu, o, damping, w, pol);
+    rec.reg = damping.reg, rec.mu = mu, rec.grad_norm = bp.gnorm;
+    if (!bp.pd) {
       r.status = "stalled";
       rec.cost = c.cost, rec.merit = merit, rec.violation = c.violation, rec.time = seconds_since(t_it);
-      r.log.push_back(rec);
-      if (o.callback) o.callback(rec);
+      record(r, o, rec);
       break;
     }
 
-    // ---- forward pass: backtracking line search on the actual merit
-    double alpha = 1, accepted = 0, merit_new = merit;
-    for (int ls = 0; ls < o.line_search_steps; ++ls, alpha *= 0.5) {
-      const double expected = -(alpha * d1 + 0.5 * alpha * alpha * d2);
-      if (!rollout(X, U, alpha, true, Xn, Un)) continue;
-      ev.eval(Xn, Un, false, cn);
-      const double m_new = cn.cost + mu * cn.barrier;
-      if (!std::isfinite(m_new)) continue;
-      const double actual = merit - m_new;
-      if (actual > 1e-4 * expected || (expected <= 0 && actual >= 0)) {
-        accepted = alpha, merit_new = m_new, rec.expected = expected, rec.actual = actual;
-        break;
-      }
-    }
+    // ---- forward pass: line search
+    const Trial t = line_search(pl, ev, pol, X, U, merit, mu, bp, o, Xn, Un, cn, rec);
 
+    // ---- the step taken (λ shrinks) or refused (λ grows); stalled: no progress at this μ
     bool stalled_now;
-    if (accepted > 0) {
-      const double decrease = merit - merit_new;
+    if (t.alpha > 0) {
+      const double decrease = merit - t.merit;
       X.swap(Xn), U.swap(Un);
       ev.eval(X, U, true, c);
       have_derivatives = false;
-      merit = merit_new;
-      // λ shrinks on success
-      reg_step = std::min(reg_step / o.reg_factor, 1.0 / o.reg_factor);
-      reg = std::max(reg * reg_step, o.reg_min);
-      stalled_now = decrease <= o.tol_cost * std::max(1.0, std::abs(merit)) || gnorm < o.tol_grad;
+      merit = t.merit;
+      damping.shrink(o);
+      stalled_now = decrease <= o.tol_cost * std::max(1.0, std::abs(merit)) || bp.gnorm < o.tol_grad;
     } else {
-      // λ grows on a failed line search
-      reg_step = std::max(reg_step * o.reg_factor, o.reg_factor);
-      reg = std::max(reg * reg_step, o.reg_min);
-      stalled_now = gnorm < o.tol_grad || -(d1 + 0.5 * d2) <= o.tol_cost * std::max(1.0, std::abs(merit));
+      damping.grow(o);
+      stalled_now =
+          bp.gnorm < o.tol_grad || -(bp.d1 + 0.5 * bp.d2) <= o.tol_cost * std::max(1.0, std::abs(merit));
     }
-    rec.step = accepted, rec.cost = c.cost, rec.merit = merit, rec.violation = c.violation;
-    // ---- barrier schedule: μ shrinks when the inner iterations stall; done at mu_min
-    bool done = false;
-    if (stalled_now) {
-      if (mu <= o.mu_min) {
-        done = true;
-      } else {
-        mu = std::max(mu * o.mu_factor, o.mu_min);
-        merit = c.cost + mu * c.barrier;
-        reg = std::max(o.reg_init, o.reg_min), reg_step = 1;
-      }
-    }
+    rec.step = t.alpha, rec.cost = c.cost, rec.merit = merit, rec.violation = c.violation;
+
+    // ---- barrier schedule
+    const bool done = barrier_schedule(stalled_now, o, c, mu, merit, damping);
     rec.time = seconds_since(t_it);
-    r.log.push_back(rec);
-    if (o.callback) o.callback(rec);
+    record(r, o, rec);
     r.iterations = it;
     if (done) {
       r.status = "converged";
       break;
     }
-    if (reg > o.reg_max) {
+    if (damping.reg > o.reg_max) {
       r.status = "stalled";
       break;
     }
@@ -595,7 +712,7 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
 
   // ---- result
   r.converged = r.status == "converged";
-  r.X = X, r.U = U, r.K = K, r.k = kff;
+  r.X = X, r.U = U, r.K = pol.K, r.k = pol.k;
   r.cost = c.cost, r.violation = c.violation, r.mu = mu, r.merit = c.cost + mu * c.barrier;
   for (const IterationRecord& rec : r.log) r.derivatives_time += rec.derivatives_time;
   r.time = seconds_since(t_start);

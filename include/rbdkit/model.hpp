@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "joint.hpp"
+#include "joint_types.hpp"
 
 namespace rbd {
 

@@ -18,7 +18,7 @@
 // memory); WorkspaceBuffer zero-fills the full one, as it always has.
 #pragma once
 
-#include "joint.hpp"
+#include "joint_types.hpp"
 
 namespace rbd {
 

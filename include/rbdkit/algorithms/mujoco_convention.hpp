@@ -37,17 +37,7 @@ enum OutputConvention : int {
 
 // ---- layout
 
-// quaternion (w, x, y, z) stored at q
-template <typename S> RBD_HD Quat<S> load_quat_wxyz(const S* q) { return {q[1], q[2], q[3], q[0]}; }
-template <typename S> RBD_HD void store_quat_wxyz(const Quat<S>& a, S* q) {
-  q[0] = a.w; q[1] = a.x; q[2] = a.y; q[3] = a.z;
-}
-
-// first quaternion coordinate of a free or ball joint, -1 for other joints
-template <typename S> RBD_HD int quat_offset(const BodyDesc<S>& b) {
-  if (b.mimic) return -1;
-  return b.type == kFree ? b.q_idx + 3 : b.type == kSpherical ? b.q_idx : -1;
-}
+// (MuJoCo's quaternion order, load_quat_wxyz / store_quat_wxyz, and quat_offset: joint_types.hpp)
 
 // q_pin (nq, quaternions x y z w) -> q_mj (nq, w x y z); in place allowed
 template <typename S> RBD_HD void configuration_to_mujoco(const ModelView<S>& m, const S* q_pin, S* q_mj) {
@@ -113,27 +103,14 @@ RBD_HD void acceleration_to_mujoco(const ModelView<S>& m, const S* q_mj, const S
 
 // ---- retraction (MuJoCo coordinates)
 
+// each joint's retraction is its type's mj_* (joint_types.hpp)
+
 // q ⊕ v (mj_integratePos with unit step): q (nq), v (nv) -> out (nq)
 template <typename S> RBD_HD void mj_integrate(const ModelView<S>& m, const S* q, const S* v, S* out) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;
-    const S* qj = q + b.q_idx;
-    const S* vj = v + b.v_idx;
-    S* oj = out + b.q_idx;
-    if (b.type == kFree || b.type == kSpherical) {
-      int r = 0;
-      if (b.type == kFree) {
-        for (int k = 0; k < 3; ++k) oj[k] = qj[k] + vj[k];
-        r = 3;
-      }
-      // normalized product, no hemisphere flip (as mju_quatIntegrate)
-      const Quat<S> a = load_quat_wxyz(qj + r) * quat_exp(Vec3<S>{vj[r], vj[r + 1], vj[r + 2]});
-      const S n = S(1) / ssqrt(a.x * a.x + a.y * a.y + a.z * a.z + a.w * a.w);
-      store_quat_wxyz(Quat<S>{n * a.x, n * a.y, n * a.z, n * a.w}, oj + r);
-    } else {
-      oj[0] = qj[0] + vj[0];
-    }
+    visit_joint(b.type, [&](auto J) { J.mj_integrate(q + b.q_idx, v + b.v_idx, out + b.q_idx); });
   }
 }
 
@@ -142,20 +119,7 @@ template <typename S> RBD_HD void mj_difference(const ModelView<S>& m, const S* 
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;
-    const S* a = q0 + b.q_idx;
-    const S* c = q1 + b.q_idx;
-    S* o = out + b.v_idx;
-    if (b.type == kFree || b.type == kSpherical) {
-      int r = 0;
-      if (b.type == kFree) {
-        for (int k = 0; k < 3; ++k) o[k] = c[k] - a[k];
-        r = 3;
-      }
-      const Vec3<S> w = quat_log(conj(load_quat_wxyz(a + r)) * load_quat_wxyz(c + r));
-      o[r] = w.x; o[r + 1] = w.y; o[r + 2] = w.z;
-    } else {
-      o[0] = c[0] - a[0];
-    }
+    visit_joint(b.type, [&](auto J) { J.mj_difference(q0 + b.q_idx, q1 + b.q_idx, out + b.v_idx); });
   }
 }
 
@@ -168,14 +132,7 @@ template <typename S> RBD_HD void mj_dintegrate(const ModelView<S>& m, const S* 
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;
     const int o = b.v_idx;
-    if (b.type == kFree || b.type == kSpherical) {
-      const int r = b.type == kFree ? 3 : 0;
-      for (int k = 0; k < r; ++k) J[(o + k) * nv + o + k] = S(1);  // additive position
-      const Vec3<S> w = {v[o + r], v[o + r + 1], v[o + r + 2]};
-      put_block3(arg == 0 ? transpose(to_matrix(quat_exp(w))) : jexp3(w), J, nv, o + r, o + r);
-    } else {
-      J[o * nv + o] = S(1);
-    }
+    visit_joint(b.type, [&](auto JT) { JT.mj_dintegrate(v + o, arg, J + o * nv + o, nv); });
   }
 }
 
@@ -183,20 +140,11 @@ template <typename S> RBD_HD void mj_dintegrate(const ModelView<S>& m, const S* 
 template <typename S> RBD_HD void mj_ddifference(const ModelView<S>& m, const S* q0, const S* q1, int arg, S* J) {
   const int nv = m.nv;
   for (int k = 0; k < nv * nv; ++k) J[k] = S(0);
-  const S sign = arg == 1 ? S(1) : S(-1);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;
     const int o = b.v_idx;
-    if (b.type == kFree || b.type == kSpherical) {
-      const int r = b.type == kFree ? 3 : 0;
-      for (int k = 0; k < r; ++k) J[(o + k) * nv + o + k] = sign;
-      const Quat<S> d = conj(load_quat_wxyz(q0 + b.q_idx + r)) * load_quat_wxyz(q1 + b.q_idx + r);
-      const Mat3<S> Jl = jlog3(quat_log(d));
-      put_block3(arg == 1 ? Jl : S(-1) * (Jl * transpose(to_matrix(d))), J, nv, o + r, o + r);
-    } else {
-      J[o * nv + o] = sign;
-    }
+    visit_joint(b.type, [&](auto JT) { JT.mj_ddifference(q0 + b.q_idx, q1 + b.q_idx, arg, J + o * nv + o, nv); });
   }
 }
 
