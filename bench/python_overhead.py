@@ -29,7 +29,8 @@ Sections:
              per knot point (the cost of the Handle's Python-side checks and
              copies).
   threads    _core.Engine with 1 and 2 threads at B in {256, 1024, 4096}, ns
-             per knot point, the 2-thread speed-up (target ≥ 1.8×) and the
+             per knot point (the six operations above, the RK4 step and its
+             gradient), the 2-thread speed-up (target ≥ 1.8×) and the
              ratio to Pinocchio's rneaInParallel / abaInParallel (OpenMP,
              a ModelPool) with the same threads (target ≤ 0.25×).
   breakdown  where one rbd.inverse_dynamics(q, qd, qdd) call spends its time
@@ -65,6 +66,7 @@ sys.path.insert(0, os.path.join(HERE, os.pardir, "tests", "python"))
 from pinref import Reference, close  # noqa: E402  the test suite's Pinocchio mirror of a model
 
 GRAVITY = -9.81
+DT = 0.01
 ROBOTS = (("iiwa", False), ("hyq", True))
 SINGLE_TARGET = 1.3      # rbdkit / Pinocchio, one sample per call
 HANDLE_TARGET_US = 3.0   # Handle at B = 1 above its C++ time
@@ -269,11 +271,27 @@ def engine_ops(r, e, X):
     ]
 
 
+def thread_ops(r, e, X):
+    """engine_ops and the integrator step and its gradient (RK4), which the
+    Handle section does not time: [(op, engine call)]"""
+    Q, QD, QDD, TAU = X
+    B, nq, nv = len(Q), r.nq, r.nv
+    return [(op, call) for op, call, _, _ in engine_ops(r, e, X)] + [
+        ("integrator_rk4", (e.integrator, Q, QD, TAU, DT, GRAVITY, "rk4", np.empty((B, nq + nv)))),
+        ("integrator_gradient_rk4",
+         (e.integrator_gradient, Q, QD, TAU, DT, GRAVITY, "rk4", np.empty((B, nq + nv)), np.empty((B, 2 * nv, 3 * nv)))),
+    ]
+
+
 def engine_result(op, call):
-    """the engine's outputs after `call` ran, in the Handle's layout"""
-    outs = [a for a in call[1:] if isinstance(a, np.ndarray)][-2 if op.endswith("derivatives") else -1:]
+    """the engine's outputs after `call` ran, in the Handle's layout (the
+    integrator gradient: x and AB flattened side by side)"""
+    two = op.endswith("derivatives") or op.startswith("integrator_gradient")
+    outs = [a for a in call[1:] if isinstance(a, np.ndarray)][-2 if two else -1:]
     if op == "rnea_derivatives":
         return np.concatenate(outs, axis=-1)
+    if op.startswith("integrator_gradient"):
+        return np.concatenate([o.reshape(len(o), -1) for o in outs], axis=1)
     return np.stack(outs, axis=0) if op == "aba_derivatives" else outs[0]
 
 
@@ -311,10 +329,10 @@ def section_threads(robots, opt):
         pool = pin.ModelPool(r.pm, 2) if have_pin else None
         for B in opt.batches:
             X, Xp = r.batch(B)
-            calls = {t: engine_ops(r, engines[t], X) for t in (1, 2)}
+            calls = {t: thread_ops(r, engines[t], X) for t in (1, 2)}
             pins = {t: pin_parallel(r, t, pool, Xp, B) for t in (1, 2)} if have_pin else {1: {}, 2: {}}
-            for k, op in enumerate(ENGINE_OPS):
-                c1, c2 = calls[1][k][1], calls[2][k][1]
+            for k, (op, c1) in enumerate(calls[1]):
+                c2 = calls[2][k][1]
                 for c in (c1, c2):
                     c[0](*c[1:])
                 checked(f"{r.label} B={B} {op} threads", engine_result(op, c2), engine_result(op, c1))
