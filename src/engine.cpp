@@ -56,7 +56,7 @@ template <> struct Width<float> { static constexpr int value = RBDKIT_ENGINE_W32
 // it as thread 0; each worker t < active that arrives before the caller has
 // finished and closed the job works on it too, so a late worker (asleep,
 // or its core busy) delays nothing. The job hands out its work itself (a
-// shared counter: job() below), so whichever threads come share it.
+// shared counter: Job::claim below), so whichever threads come share it.
 //
 // Between jobs a worker spins on the state word for up to kSpin (a pause
 // instruction per try), then sleeps on a condition variable; the caller
@@ -105,7 +105,7 @@ class Pool {
   static std::uint32_t epoch(std::uint64_t s) { return static_cast<std::uint32_t>(s >> 32); }
   static int active(std::uint64_t s) { return static_cast<int>((s >> 16) & 0xffffu); }
 
-  static void pause() {
+  static void cpu_relax() {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
 #elif defined(__aarch64__)
@@ -117,7 +117,7 @@ class Pool {
     const auto until = std::chrono::steady_clock::now() + kSpin;
     for (unsigned i = 1;; ++i) {
       if (ready()) return true;
-      pause();
+      cpu_relax();
       if (i % 64 == 0 && std::chrono::steady_clock::now() >= until) return ready();
     }
   }
