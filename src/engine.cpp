@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdint>
@@ -53,64 +54,116 @@ template <typename T> struct Width;
 template <> struct Width<double> { static constexpr int value = RBDKIT_ENGINE_W64; };
 template <> struct Width<float> { static constexpr int value = RBDKIT_ENGINE_W32; };
 
-// ---- persistent pool: n - 1 workers; run() hands job(t) to threads
-// t = 0..active-1 (the caller runs t = 0) and returns when all are done
+// ---- persistent pool of n - 1 workers. run() publishes a job and works on
+// it as thread 0; each worker t < active that arrives before the caller has
+// finished and closed the job works on it too, so a late worker (asleep,
+// or its core busy) delays nothing. The job hands out its work itself (a
+// shared counter: Job::claim below), so whichever threads come share it.
+//
+// Between jobs a worker spins on the state word for up to kSpin (a pause
+// instruction per try), then sleeps on a condition variable; the caller
+// waits for the workers inside its job the same way. A call while the
+// workers spin costs two cache-line transfers each way and no system call.
 class Pool {
  public:
   explicit Pool(int n) {
     for (int t = 1; t < n; ++t) workers_.emplace_back([this, t] { loop(t); });
   }
   ~Pool() {
-    {
-      std::lock_guard<std::mutex> lk(mu_);
-      stop_ = true;
-    }
+    stop_.store(true);
+    { std::lock_guard<std::mutex> lk(mu_); }  // a worker between its check and its wait is waiting now
     start_.notify_all();
     for (std::thread& th : workers_) th.join();
   }
-  // fn must not throw
+  // fn(ctx, t) on threads 0 (the caller) .. active - 1; fn must not throw
   void run(int active, void (*fn)(void*, int), void* ctx) {
-    if (active > 1) {
-      std::lock_guard<std::mutex> lk(mu_);
-      fn_ = fn, ctx_ = ctx, active_ = active, pending_ = active - 1;
-      ++generation_;
+    active = std::min<int>(active, static_cast<int>(workers_.size()) + 1);
+    if (active <= 1) {
+      fn(ctx, 0);
+      return;
     }
-    if (active > 1) start_.notify_all();
+    fn_ = fn, ctx_ = ctx;
+    // publish (no worker is inside: the last job was closed and left)
+    const std::uint64_t e = (epoch(state_.load(std::memory_order_relaxed)) + 1u) & 0xffffffffu;
+    state_.store(e << 32 | std::uint64_t(active) << 16 | kOpen);
+    if (sleeping_.load() > 0) {
+      { std::lock_guard<std::mutex> lk(mu_); }
+      start_.notify_all();
+    }
     fn(ctx, 0);
-    if (active > 1) {
-      std::unique_lock<std::mutex> lk(mu_);
-      done_.wait(lk, [this] { return pending_ == 0; });
-    }
+    // close: no worker joins from here on; wait for those inside
+    if ((state_.fetch_and(~kOpen) & kInside) == 0) return;
+    if (spin([this] { return (state_.load(std::memory_order_acquire) & kInside) == 0; })) return;
+    std::unique_lock<std::mutex> lk(mu_);
+    caller_sleeping_.store(true);
+    done_.wait(lk, [this] { return (state_.load() & kInside) == 0; });
+    caller_sleeping_.store(false, std::memory_order_relaxed);
   }
 
  private:
+  // state_: epoch (bits 32..63, +1 per job), active (16..31), open (15: workers may join), inside (0..14)
+  static constexpr std::uint64_t kOpen = 1u << 15, kInside = kOpen - 1;
+  static constexpr std::chrono::microseconds kSpin{50};
+  static std::uint32_t epoch(std::uint64_t s) { return static_cast<std::uint32_t>(s >> 32); }
+  static int active(std::uint64_t s) { return static_cast<int>((s >> 16) & 0xffffu); }
+
+  static void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
+#endif
+  }
+  // true once ready() holds, false if it did not within kSpin
+  template <typename F> static bool spin(F ready) {
+    const auto until = std::chrono::steady_clock::now() + kSpin;
+    for (unsigned i = 1;; ++i) {
+      if (ready()) return true;
+      cpu_relax();
+      if (i % 64 == 0 && std::chrono::steady_clock::now() >= until) return ready();
+    }
+  }
+
   void loop(int t) {
-    long seen = 0;
+    std::uint32_t seen = 0;
     for (;;) {
-      void (*fn)(void*, int);
-      void* ctx;
-      {
-        std::unique_lock<std::mutex> lk(mu_);
-        start_.wait(lk, [&] { return stop_ || generation_ != seen; });
-        if (stop_) return;
-        seen = generation_;
-        if (t >= active_) continue;
-        fn = fn_, ctx = ctx_;
+      std::uint64_t s = state_.load(std::memory_order_acquire);
+      if (epoch(s) == seen) {  // wait for the next job: spin, then sleep
+        auto next = [&] {
+          s = state_.load();
+          return stop_.load(std::memory_order_relaxed) || epoch(s) != seen;
+        };
+        if (!spin(next)) {
+          std::unique_lock<std::mutex> lk(mu_);
+          sleeping_.fetch_add(1);
+          start_.wait(lk, next);
+          sleeping_.fetch_sub(1);
+        }
+        if (stop_.load()) return;
       }
-      fn(ctx, t);
-      std::lock_guard<std::mutex> lk(mu_);
-      if (--pending_ == 0) done_.notify_one();
+      seen = epoch(s);
+      // join while the job is open and counts this thread in
+      while ((s & kOpen) && t < active(s) && epoch(s) == seen)
+        if (state_.compare_exchange_weak(s, s + 1)) {
+          fn_(ctx_, t);
+          const std::uint64_t before = state_.fetch_sub(1);
+          if ((before & kInside) == 1 && !(before & kOpen) && caller_sleeping_.load()) {
+            { std::lock_guard<std::mutex> lk(mu_); }
+            done_.notify_one();
+          }
+          break;
+        }
     }
   }
 
   std::vector<std::thread> workers_;
-  std::mutex mu_;
-  std::condition_variable start_, done_;
-  void (*fn_)(void*, int) = nullptr;
+  alignas(64) std::atomic<std::uint64_t> state_{0};
+  std::atomic<int> sleeping_{0};      // workers asleep on start_
+  std::atomic<bool> caller_sleeping_{false}, stop_{false};
+  void (*fn_)(void*, int) = nullptr;  // the job (written before it is published)
   void* ctx_ = nullptr;
-  int active_ = 0, pending_ = 0;
-  long generation_ = 0;
-  bool stop_ = false;
+  alignas(64) std::mutex mu_;
+  std::condition_variable start_, done_;
 };
 
 // one thread's buffer: a workspace of packs, then the call's packed
@@ -187,6 +240,23 @@ template <typename T> struct EngineT : Engine::Impl {
     return n;
   }
 
+  // the smallest sample any thread reports into `first` (-1: none yet)
+  static void lower(std::atomic<long>& first, long s) {
+    long cur = first.load(std::memory_order_relaxed);
+    while ((cur < 0 || s < cur) && !first.compare_exchange_weak(cur, s, std::memory_order_relaxed)) {
+    }
+  }
+  // NaN in lane l where one of x[0..n) holds an inf or a NaN in lane l, else
+  // 0 (x - x is 0 for a finite x; four sums to overlap the additions)
+  static P nonfinite_lanes(const P* x, long n) {
+    P a0(0), a1(0), a2(0), a3(0);
+    long k = 0;
+    for (; k + 4 <= n; k += 4)
+      a0 += x[k] - x[k], a1 += x[k + 1] - x[k + 1], a2 += x[k + 2] - x[k + 2], a3 += x[k + 3] - x[k + 3];
+    for (; k < n; ++k) a0 += x[k] - x[k];
+    return (a0 + a1) + (a2 + a3);
+  }
+
   // kernel(w, in[], out[], scratch) -> false where a lane's mass matrix is not PD
   template <typename K> struct Job {
     EngineT* e;
@@ -194,11 +264,28 @@ template <typename T> struct EngineT : Engine::Impl {
     int active, nin, nout;
     In<T> in[kMaxArgs];
     Out<T> out[kMaxArgs];
-    long scratch;
     const K* kernel;
-    std::atomic<long> failed{-1};
+    std::atomic<long> failed{-1};          // the first sample of the first pack whose kernel failed
+    std::atomic<long> nonfinite[kMaxArgs];  // per output: the first sample with an inf or a NaN
+    alignas(64) std::atomic<long> next{0};  // the first pack not handed out yet (a cache line of its own)
 
     static void call(void* self, int t) { static_cast<Job*>(self)->work(t); }
+    // the next packs [p0, p1) for one thread: guided chunks, each 1/(2·active)
+    // of those left (at least one), so that threads that start late or run
+    // slow still finish together, in O(active · log(packs)) claims
+    bool claim(long& p0, long& p1) {
+      long p = next.load(std::memory_order_relaxed);
+      for (;;) {
+        if (p >= packs) return false;
+        const long n = std::max(1L, (packs - p) / (2L * active));
+        if (next.compare_exchange_weak(p, p + n, std::memory_order_relaxed)) {
+          p0 = p, p1 = p + n;
+          return true;
+        }
+      }
+    }
+    // thread t's share, on its own buffer; which thread runs a pack does not
+    // change its result (every pack runs the same code from its own inputs)
     void work(int t) {
       ThreadBuffer<P>& buf = e->buffers[t];
       P* ins[kMaxArgs] = {};
@@ -209,34 +296,38 @@ template <typename T> struct EngineT : Engine::Impl {
       for (int i = 0; i < nout; ++i)
         if (out[i].p) outs[i] = v, v += out[i].w;
       P* scr = v;
-      const long p0 = packs * t / active, p1 = packs * (t + 1) / active;
-      for (long p = p0; p < p1; ++p) {
-        const long s0 = p * W;
-        const int valid = static_cast<int>(std::min<long>(W, B - s0));
-        // gather: lane l holds sample s0 + l (the last valid one for padding)
-        for (int i = 0; i < nin; ++i) {
-          if (!in[i].p) continue;
-          const long w = in[i].w;
-          for (int l = 0; l < W; ++l) {
-            const T* src = in[i].p + (s0 + std::min(l, valid - 1)) * in[i].stride;
-            for (long k = 0; k < w; ++k) ins[i][k].v[l] = src[k];
+      long p0, p1;
+      while (claim(p0, p1))
+        for (long p = p0; p < p1; ++p) {
+          const long s0 = p * W;
+          const int valid = static_cast<int>(std::min<long>(W, B - s0));
+          // gather: lane l holds sample s0 + l (the last valid one for padding)
+          for (int i = 0; i < nin; ++i) {
+            if (!in[i].p) continue;
+            const long w = in[i].w;
+            for (int l = 0; l < W; ++l) {
+              const T* src = in[i].p + (s0 + std::min(l, valid - 1)) * in[i].stride;
+              for (long k = 0; k < w; ++k) ins[i][k].v[l] = src[k];
+            }
+          }
+          if (!(*kernel)(e->mv, buf.ws, ins, outs, scr)) lower(failed, s0);
+          for (int i = 0; i < nout; ++i) {
+            if (!out[i].p) continue;
+            const long w = out[i].w;
+            // results that overflowed despite the inputs' bounds
+            const P bad = nonfinite_lanes(outs[i], w);
+            for (int l = 0; l < valid; ++l)
+              if (bad.v[l] != bad.v[l]) {
+                lower(nonfinite[i], s0 + l);
+                break;
+              }
+            // scatter the valid lanes
+            for (int l = 0; l < valid; ++l) {
+              T* dst = out[i].p + (s0 + l) * w;
+              for (long k = 0; k < w; ++k) dst[k] = outs[i][k].v[l];
+            }
           }
         }
-        if (!(*kernel)(e->mv, buf.ws, ins, outs, scr)) {
-          long cur = failed.load();
-          while ((cur < 0 || s0 < cur) && !failed.compare_exchange_weak(cur, s0)) {
-          }
-        }
-        // scatter the valid lanes
-        for (int i = 0; i < nout; ++i) {
-          if (!out[i].p) continue;
-          const long w = out[i].w;
-          for (int l = 0; l < valid; ++l) {
-            T* dst = out[i].p + (s0 + l) * w;
-            for (long k = 0; k < w; ++k) dst[k] = outs[i][k].v[l];
-          }
-        }
-      }
     }
   };
 
@@ -267,7 +358,7 @@ template <typename T> struct EngineT : Engine::Impl {
     long values = scratch;
     for (int i = 0; i < nin; ++i) job.in[i] = ins[i], values += ins[i].p ? ins[i].w : 0;
     for (int i = 0; i < nout; ++i) job.out[i] = outs[i], values += outs[i].p ? outs[i].w : 0;
-    job.scratch = scratch;
+    for (std::atomic<long>& s : job.nonfinite) s.store(-1, std::memory_order_relaxed);
     job.kernel = &kernel;
     for (int t = 0; t < job.active; ++t) buffers[t].reserve(model.nb(), model.nv, values, layout);
     pool.run(job.active, &Job<K>::call, &job);
@@ -288,17 +379,14 @@ template <typename T> struct EngineT : Engine::Impl {
          << "of an integrator step overflowed, in samples " << f << ".." << std::min(B, f + W) - 1;
       throw std::runtime_error(os.str());
     }
-    // results that overflowed despite the inputs' bounds (one pass over the outputs)
+    // the first output that overflowed, at its first such sample
     for (int o = 0; o < job.nout; ++o) {
-      const Out<T>& a = job.out[o];
-      if (!a.p) continue;
-      for (long k = 0; k < B * a.w; ++k)
-        if (!std::isfinite(a.p[k])) {
-          std::ostringstream os;
-          os << what << ": output " << o << " is not finite at sample " << k / a.w
-             << ": the computation overflowed; reduce the inputs' magnitudes (or dt)";
-          throw std::runtime_error(os.str());
-        }
+      const long s = job.nonfinite[o].load();
+      if (s < 0) continue;
+      std::ostringstream os;
+      os << what << ": output " << o << " is not finite at sample " << s
+         << ": the computation overflowed; reduce the inputs' magnitudes (or dt)";
+      throw std::runtime_error(os.str());
     }
   }
 };

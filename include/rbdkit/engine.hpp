@@ -13,10 +13,16 @@
 // quaternions): the checked entry points are in dynamics.hpp.
 //
 // Determinism: samples are grouped into packs of W consecutive samples
-// (the last pack padded with copies of the batch's last sample), and the
-// packs are split into contiguous runs, one per thread. Every sample goes
-// through the same pack code in a lane of its own, so its result is
-// bit-identical whatever the thread count and the batch size.
+// (the last pack padded with copies of the batch's last sample); the
+// threads take runs of packs from a shared counter as they come. Every
+// sample goes through the same pack code in a lane of its own, whichever
+// thread runs its pack, so its result is bit-identical whatever the thread
+// count and the batch size.
+//
+// Threads: a persistent pool; the calling thread works too. Between calls
+// a worker spins for up to 50 µs, then sleeps: calls in quick succession
+// hand off without a system call, and an idle engine uses no CPU. A worker
+// that is not there in time (asleep, or its core busy) is not waited for.
 //
 // Memory: each thread keeps one buffer, grown on the first call that needs
 // more and reused afterwards (no allocation per call after that). Per pack

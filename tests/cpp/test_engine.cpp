@@ -9,15 +9,22 @@
 //     the ulp-level differences of the vectorised sin/cos);
 //     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
 //     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
-//   * bad arguments (threads, dtype, array type, B, integrator type, dt).
+//   * bad arguments (threads, dtype, array type, B, integrator type, dt);
+//   * an output that overflows is named (output, first sample) at any thread
+//     count; the pool's hand-off under churn (made / destroyed, asleep, two
+//     callers) gives the one-thread results.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <random>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
@@ -408,4 +415,77 @@ TEST(Engine, LinearOperationsKeepALinearWorkspace) {
   run_linear_ops(full, big, rf);
   ASSERT_EQ(rf.size(), rb.size());
   for (size_t k = 0; k < rf.size(); ++k) ASSERT_EQ(rf[k], rb[k]) << k;
+}
+
+// an output that overflows from finite inputs is named: the first output in
+// the operation's order, at its first such sample, whatever the thread count
+// (each thread checks the packs it ran)
+TEST(Engine, OutputThatOverflowsIsNamed) {
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf");
+  const long B = 65, nv = m.nv;
+  const Samples s = make_samples(m, B, 3);
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "no exception";
+  };
+  for (const char* dtype : {"float64", "float32"})
+    for (int threads : {1, 2, 3}) {
+      Engine e(m, threads, dtype);
+      auto run = [&](auto zero) {
+        using T = decltype(zero);
+        std::vector<T> q(s.q.begin(), s.q.end()), qd(s.qd.begin(), s.qd.end()), a(s.a.begin(), s.a.end()),
+            tau(B * nv), d1(B * nv * nv), d2(B * nv * nv);
+        // a joint velocity whose square overflows, in three samples of three packs
+        for (long b : {50L, 37L, 61L}) qd[b * nv + 1] = std::numeric_limits<T>::max() / 4;
+        const std::string id = message([&] { e.inverse_dynamics<T>(B, q.data(), qd.data(), a.data(), T(kG), tau.data()); });
+        EXPECT_NE(id.find("inverse_dynamics: output 0 is not finite at sample 37"), std::string::npos)
+            << dtype << " threads " << threads << ": " << id;
+        const std::string grad = message(
+            [&] { e.inverse_dynamics_gradient<T>(B, q.data(), qd.data(), a.data(), T(kG), d1.data(), d2.data()); });
+        EXPECT_NE(grad.find("output 0 is not finite at sample 37"), std::string::npos)
+            << dtype << " threads " << threads << ": " << grad;
+        // the other samples are computed, and finite
+        for (long b = 0; b < 37; ++b)
+          for (long k = 0; k < nv; ++k) ASSERT_TRUE(std::isfinite(tau[b * nv + k])) << b;
+      };
+      if (std::string(dtype) == "float64") run(0.0);
+      else run(0.0f);
+    }
+}
+
+// the pool's hand-off under churn: engines made and destroyed around short
+// calls, more threads than cores, calls after the workers have gone to
+// sleep, and two callers on one engine (their calls serialise): every result
+// bit-identical to the one-thread engine's
+TEST(Engine, PoolHandOffUnderChurn) {
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf");
+  const long B = 64;
+  const Samples s = make_samples(m, B, 5);
+  Engine one(m, 1);
+  const std::vector<double> want_id = run_engine<double>(one, 0, B, s), want_crba = run_engine<double>(one, 1, B, s);
+  auto same = [](const std::vector<double>& got, const std::vector<double>& want) {
+    return std::memcmp(got.data(), want.data(), got.size() * sizeof(double)) == 0;
+  };
+  for (int round = 0; round < 40; ++round) {
+    Engine e(m, 1 + round % 4);
+    for (long b : {1L, 9L, B}) ASSERT_TRUE(same(run_engine<double>(e, 0, b, s), want_id)) << round << " B " << b;
+    if (round % 8 == 0) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the workers are asleep now
+      ASSERT_TRUE(same(run_engine<double>(e, 1, B, s), want_crba)) << round;
+    }
+  }
+  Engine shared(m, 2);
+  std::atomic<int> wrong{0};
+  auto caller = [&](int op) {
+    for (int k = 0; k < 100; ++k)
+      if (!same(run_engine<double>(shared, op, B, s), op == 0 ? want_id : want_crba)) ++wrong;
+  };
+  std::thread a(caller, 0), b(caller, 1);
+  a.join();
+  b.join();
+  EXPECT_EQ(wrong.load(), 0);
 }

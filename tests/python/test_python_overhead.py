@@ -51,7 +51,7 @@ def test_quick_run_writes_the_report(tmp_path):
         assert positive(x["handle_ns"]) and positive(x["engine_ns"]), x
 
     threads = res["threads"]
-    assert len(threads) == len(ROBOTS) * 6
+    assert len(threads) == len(ROBOTS) * 8  # the six above, the RK4 step and its gradient
     for x in threads:
         assert positive(x["engine_t1_ns"]) and positive(x["engine_t2_ns"]), x
         assert ("ratio_t2" in x) == (x["op"] in ("rnea", "aba")), x  # Pinocchio's rneaInParallel / abaInParallel
