@@ -366,7 +366,7 @@ template <typename T> struct EngineT : Engine::Impl {
     if (f >= 0) {
       // name the joint: the first sample of the failed pack (q: the first input) where one is singular
       std::vector<double> qs(model.nq);
-      for (long s = f; s < std::min(B, f + W); ++s) {
+      for (long s = f; s < std::min(B, f + W) && !(failure && failure->failure == ops::kNoMass); ++s) {
         for (int k = 0; k < model.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s * job.in[0].stride + k]);
         if (singular_joint(model, qs.data()) >= 0) throw_not_positive_definite(model, what, qs.data(), s);
       }

@@ -3,6 +3,7 @@
 #include "rbdkit/handle.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <stdexcept>
 
 #include "rbdkit/costs_api.hpp"
@@ -165,7 +166,15 @@ void Handle::run(int op, const ops::OpCall& call) {
                                 std::to_string(call.B));
   if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
   else ops::check_call<double>(model_, *e.spec, call);
-  if (model_.nb() == 0) return;  // no joints: every output is empty
+  if (model_.nb() == 0) {
+    // no joints: no bodies and no mass. Outputs of the model's sizes are empty; the others (an energy, a
+    // centre of mass) are a sum over no bodies, 0, or undefined without mass
+    if (e.spec->failure == ops::kNoMass) ops::throw_failure(model_, *e.spec, nullptr, -1);
+    const size_t bytes = dtype_ == "float32" ? sizeof(float) : sizeof(double);
+    for (int o = 0; o < e.spec->n_out; ++o)
+      if (call.out[o]) std::memset(call.out[o], 0, bytes * call.B * ops::out_values(e.spec->out[o], model_));
+    return;
+  }
   if (engine_) return engine_->run_op(op, call);
   std::lock_guard<std::mutex> lk(run_);
   const long n = ops::scratch_values(*e.spec, model_);

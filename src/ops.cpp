@@ -139,6 +139,7 @@ long scratch_values(const OpSpec& op, const Model& m) {
   switch (op.scratch) {
     case kNoScratch: return 0;
     case kScratchNv: return m.nv;
+    case kScratch6Nv: return 6L * m.nv;
     case kScratch2NvNv: return 2L * m.nv * m.nv;
     case kScratchIntegrator: return integrator_scratch_values(m.nq, m.nv);
     case kScratchIntegratorGrad: return integrator_gradient_scratch_values(m.nq, m.nv) + m.nq + m.nv;
@@ -217,6 +218,13 @@ template void check_call<double>(const Model&, const OpSpec&, const OpCall&);
 template void check_call<float>(const Model&, const OpSpec&, const OpCall&);
 
 void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample) {
+  if (op.failure == kNoMass) {
+    std::ostringstream os;
+    os << op.name << ": the robot has no mass (total mass 0";
+    if (sample >= 0) os << " at sample " << sample;
+    os << "), so its centre of mass is undefined";
+    throw std::runtime_error(os.str());
+  }
   if (op.failure == kNotPositiveDefinite || singular_joint(m, q) >= 0)
     throw_not_positive_definite(m, op.name, q, sample);
   std::ostringstream os;

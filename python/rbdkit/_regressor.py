@@ -3,6 +3,11 @@ of the inertial parameters π = model.inertial_parameters() (10·nb,), per body
 in body order [m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]
 with I about the body-frame origin in body axes (Pinocchio's dynamic
 parameters; docs/conventions.md). Analytic and exact, in the C++ core.
+
+inverse_dynamics_regressor, kinetic_energy_regressor and
+potential_energy_regressor are registered operations
+(include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself; the methods
+below are the others.
 """
 
 from . import _core
@@ -12,18 +17,7 @@ GRAVITY = -9.81
 
 
 class RegressorMixin:
-    """Regressors; mixed into rbdkit.RBD."""
-
-    def inverse_dynamics_regressor(self, q, qd, qdd=None, gravity=GRAVITY):
-        """Y (nv, 10·nb) with inverse_dynamics(q, qd, qdd)[0] = Y @ π (no
-        external forces); qdd=None means zero. O(n·d)."""
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        ia = None if qdd is None else self._v(b, qdd, "qdd")
-        g = check_scalar(gravity, "gravity")
-        Y = b.out(self.nv, 10 * self.nb)
-        _core.inverse_dynamics_regressor(self._m, b.get(iq), b.get(iv), None if ia is None else b.get(ia), g, Y)
-        return b.ret(Y)
+    """The regressors that are not registered operations; mixed into rbdkit.RBD."""
 
     def inverse_dynamics_regressor_gradient(self, q, qd, qdd=None, gravity=GRAVITY):
         """dY_dx (2·nv, nv, 10·nb): dY_dx[c] = ∂Y/∂x_c for x = [q (tangent
@@ -47,22 +41,3 @@ class RegressorMixin:
         out = b.out(self.nv, 10 * self.nb)
         _core.forward_dynamics_parameter_gradient(self._m, b.get(iq), b.get(iv), b.get(iu), g, out)
         return b.ret(out)
-
-    def kinetic_energy_regressor(self, q, qd):
-        """y (10·nb,) with kinetic energy ½ qdᵀ M qd = y @ π (Pinocchio's
-        computeKineticEnergyRegressor)."""
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        y = b.out(10 * self.nb)
-        _core.kinetic_energy_regressor(self._m, b.get(iq), b.get(iv), y)
-        return b.ret(y)
-
-    def potential_energy_regressor(self, q, gravity=GRAVITY):
-        """y (10·nb,) with potential energy -Σ m_b g·c_b = y @ π, g = (0, 0,
-        gravity), zero at the world origin (Pinocchio's computePotentialEnergyRegressor)."""
-        b = Batch()
-        iq = self._q(b, q)
-        g = check_scalar(gravity, "gravity")
-        y = b.out(10 * self.nb)
-        _core.potential_energy_regressor(self._m, b.get(iq), g, y)
-        return b.ret(y)

@@ -11,12 +11,14 @@
 #include <string>
 #include <vector>
 
+#include "rbdkit/centroidal_api.hpp"
 #include "rbdkit/derivatives_api.hpp"
 #include "rbdkit/dynamics.hpp"
 #include "rbdkit/handle.hpp"
 #include "rbdkit/integrators_api.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
+#include "rbdkit/regressor_api.hpp"
 #include "test_models.hpp"
 
 using rbd::Model;
@@ -141,8 +143,12 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
   const Model m = Model::from_urdf_file(mc.path, mc.floating);
   rbd::Handle h(m);
   const long B = 3;
-  for (const char* name : {"inverse_dynamics", "crba", "minv", "aba", "forward_dynamics", "inverse_dynamics_gradient",
-                           "integrate", "integrator"}) {
+  for (const char* name :
+       {"inverse_dynamics", "crba", "minv", "aba", "forward_dynamics", "inverse_dynamics_gradient", "integrate",
+        "integrator", "kinetic_energy", "potential_energy", "mechanical_energy", "coriolis_matrix", "com",
+        "jacobian_com", "ccrba", "centroidal_momentum", "dccrba", "cmm_time_variation",
+        "centroidal_momentum_time_variation", "centroidal_dynamics_derivatives", "inverse_dynamics_regressor",
+        "kinetic_energy_regressor", "potential_energy_regressor"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
@@ -174,8 +180,49 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       rbd::batch::inverse_dynamics_gradient(m, B, in_of(0), in_of(1), in_of(2), in_of(4), -9.81, ref.data());
     } else if (n == "integrate") {
       rbd::batch::integrate(m, B, in_of(0), in_of(1), ref.data());
-    } else {
+    } else if (n == "integrator") {
       rbd::batch::integrator(m, B, in_of(0), in_of(1), in_of(2), in_of(5), 0.01, -9.81, rbd::kEuler, ref.data());
+    } else if (n == "kinetic_energy") {
+      rbd::batch::kinetic_energy(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "potential_energy") {
+      rbd::batch::potential_energy(m, B, in_of(0), -9.81, ref.data());
+    } else if (n == "mechanical_energy") {
+      rbd::batch::mechanical_energy(m, B, in_of(0), in_of(1), -9.81, ref.data());
+    } else if (n == "coriolis_matrix") {
+      rbd::batch::coriolis_matrix(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "com") {
+      rbd::batch::center_of_mass(m, B, in_of(0), ref.data());
+    } else if (n == "jacobian_com") {
+      rbd::batch::jacobian_com(m, B, in_of(0), ref.data());
+    } else if (n == "ccrba") {  // per sample A (6 x nv) then h (6)
+      std::vector<double> A(B * 6 * nv), h(B * 6);
+      rbd::batch::ccrba(m, B, in_of(0), in_of(1), A.data(), h.data());
+      for (long s = 0; s < B; ++s) {
+        std::copy_n(A.data() + s * 6 * nv, 6 * nv, ref.data() + s * w);
+        std::copy_n(h.data() + s * 6, 6, ref.data() + s * w + 6 * nv);
+      }
+    } else if (n == "centroidal_momentum") {
+      rbd::batch::centroidal_momentum(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "dccrba") {
+      rbd::batch::dccrba(m, B, in_of(0), ref.data());
+    } else if (n == "cmm_time_variation") {
+      rbd::batch::cmm_time_variation(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "centroidal_momentum_time_variation") {
+      rbd::batch::centroidal_momentum_time_variation(m, B, in_of(0), in_of(1), in_of(2), ref.data());
+    } else if (n == "centroidal_dynamics_derivatives") {  // per sample the four (6 x nv) blocks
+      std::vector<double> d(4 * B * 6 * nv);
+      const long blk = 6 * nv;
+      rbd::batch::centroidal_dynamics_derivatives(m, B, in_of(0), in_of(1), in_of(2), d.data(), d.data() + B * blk,
+                                                  d.data() + 2 * B * blk, d.data() + 3 * B * blk);
+      for (long s = 0; s < B; ++s)
+        for (int o = 0; o < 4; ++o) std::copy_n(d.data() + (o * B + s) * blk, blk, ref.data() + s * w + o * blk);
+    } else if (n == "inverse_dynamics_regressor") {
+      rbd::batch::inverse_dynamics_regressor(m, B, in_of(0), in_of(1), in_of(2), -9.81, ref.data());
+    } else if (n == "kinetic_energy_regressor") {
+      rbd::batch::kinetic_energy_regressor(m, B, in_of(0), in_of(1), ref.data());
+    } else {
+      ASSERT_EQ(n, "potential_energy_regressor");
+      rbd::batch::potential_energy_regressor(m, B, in_of(0), -9.81, ref.data());
     }
     EXPECT_LE(max_rel_err(got, ref), 1e-14);
   }
@@ -265,4 +312,35 @@ TEST(Registry, ChecksNameTheArgumentAndSample) {
   const int id = ops::find_op("aba");
   const Inputs in = make_inputs(m, *ops::op_table()[id].spec, 1, 1, false);
   EXPECT_EQ(message([&] { run<double>(only_crba, id, in); }).rfind("aba: this handle was not built with it", 0), 0u);
+}
+
+// a robot of total mass 0 has no centre of mass: every centroidal operation
+// fails with that message (kNoMass) on the serial loop and on the engine
+// (float64 and float32), not with the massless joint's singular mass matrix
+TEST(Registry, MasslessRobotHasNoCentreOfMass) {
+  const Model m = Model::from_urdf_string(
+      "<?xml version=\"1.0\"?><robot name=\"ghost\"><link name=\"a\"/><link name=\"b\"/>"
+      "<joint name=\"j\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/><axis xyz=\"0 0 1\"/></joint>"
+      "</robot>");
+  rbd::Handle serial(m), e64(m, {}, 2), e32(m, {}, 2, "float32");
+  int checked = 0;
+  for (const ops::OpEntry& e : ops::op_table()) {
+    const ops::OpSpec& op = *e.spec;
+    if (op.failure != ops::kNoMass) continue;
+    SCOPED_TRACE(op.name);
+    const Inputs in = make_inputs(m, op, 3, 2, false);
+    const std::string want = std::string(op.name) + ": the robot has no mass (total mass 0 at sample 0)";
+    for (rbd::Handle* h : {&serial, &e64, &e32}) {
+      std::string msg;
+      try {
+        if (h == &e32) run<float>(*h, e.id, in);
+        else run<double>(*h, e.id, in);
+      } catch (const std::runtime_error& err) {
+        msg = err.what();
+      }
+      EXPECT_EQ(msg.rfind(want, 0), 0u) << msg;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 8);  // com, jacobian_com, ccrba, centroidal_momentum, dccrba, cmm_time_variation, ḣ, its derivatives
 }

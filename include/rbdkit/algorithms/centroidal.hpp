@@ -16,7 +16,8 @@
 //
 // Fixed-base models: the world-fixed root link is not part of the robot
 // (the bodies are the moving ones, as in Pinocchio). A robot without mass
-// has no centre of mass: the functions then return false.
+// has no centre of mass: the functions then return false (the test is on
+// model data, the same in every lane of a SIMD pack: all_lanes).
 //
 // Layouts (row-major): A, Ȧ, J_com and the derivative matrices (rows x nv),
 // dA (6 x nv x nv) with dA[r][j][k] = ∂A[r][j]/∂δ_k (δ_k: the tangent step
@@ -93,7 +94,7 @@ template <typename S> RBD_HD bool center_of_mass(const ModelView<S>& m, Workspac
     mc += w.Xw[i].R * I.h + I.m * w.Xw[i].p;
     M += I.m;
   }
-  if (!(value_of(M) > 0)) return false;
+  if (!all_lanes(lane_gt(M, 0))) return false;
   com[0] = mc.x / M; com[1] = mc.y / M; com[2] = mc.z / M;
   return true;
 }
@@ -106,7 +107,7 @@ RBD_HD bool jacobian_com(const ModelView<S>& m, Workspace<S>& w, const S* q, S* 
   const int nv = m.nv;
   crba_forward_pass(m, w, q);
   const Inertia<S> total = composite_inertia_pass(m, w);
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const S inv_m = S(1) / total.m;
   for (int k = 0; k < 3 * nv; ++k) J[k] = S(0);
   for (int i = 0; i < m.nb; ++i) {
@@ -133,7 +134,7 @@ RBD_HD bool ccrba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* q
   const int nv = m.nv;
   crba_forward_pass(m, w, q);
   const Inertia<S> total = composite_inertia_pass(m, w);
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const Vec3<S> c = (S(1) / total.m) * total.h;
   centroidal_map_pass(m, w, A);
   shift_forces(nv, c, A);
@@ -160,7 +161,7 @@ RBD_HD bool centroidal_momentum(const ModelView<S>& m, Workspace<S>& w, const S*
     total.m += I.m;
     total.h += w.Xw[i].R * I.h + I.m * w.Xw[i].p;
   }
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   store(shift_force(h0, (S(1) / total.m) * total.h), h);
   return true;
 }
@@ -179,7 +180,7 @@ template <typename S> RBD_HD bool dccrba(const ModelView<S>& m, Workspace<S>& w,
   const int nv = m.nv, nn = nv * nv;
   crba_forward_pass(m, w, q);
   const Inertia<S> total = composite_inertia_pass(m, w);
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const S inv_m = S(1) / total.m;
   const Vec3<S> c = inv_m * total.h;
   centroidal_map_pass(m, w, A);
@@ -247,7 +248,7 @@ RBD_HD bool cmm_time_variation(const ModelView<S>& m, Workspace<S>& w, const S* 
       h0 += w.h[i];
     }
   }
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const S inv_m = S(1) / total.m;
   const Vec3<S> c = inv_m * total.h, cdot = inv_m * h0.lin;
   // world-origin columns
@@ -291,7 +292,7 @@ RBD_HD bool centroidal_momentum_time_variation(const ModelView<S>& m, Workspace<
     total.m += b.I.m;
     total.h += w.Xw[i].R * b.I.h + b.I.m * w.Xw[i].p;
   }
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const Vec3<S> c = (S(1) / total.m) * total.h;
   store(shift_force(f0, c), hdot);
   if (h) store(shift_force(h0, c), h);
@@ -360,7 +361,7 @@ RBD_HD bool centroidal_dynamics_derivatives(const ModelView<S>& m, Workspace<S>&
   Inertia<S> total;
   Force<S> h0, f0;
   centroidal_derivatives_backward_pass(m, w, dh_dq, dhdot_dq, dhdot_dv, dhdot_da, total, h0, f0);
-  if (!(value_of(total.m) > 0)) return false;
+  if (!all_lanes(lane_gt(total.m, 0))) return false;
   const S inv_m = S(1) / total.m;
   const Vec3<S> c = inv_m * total.h;
   // move to c; c moves by A0.lin[k] / M along δ_k

@@ -29,6 +29,7 @@ enum Dim : int {
   kNx = -4,   // nq + nv (a state x = [q; qd])
   k2Nv = -5,  // 2 nv (tangent state)
   k3Nv = -6,  // 3 nv (tangent state and input)
+  k10Nb = -7, // 10 nb (inertial parameters, Model::inertial_parameters)
 };
 
 // the per-sample shape of an array: rank 0..kMaxRank
@@ -50,6 +51,7 @@ RBD_HD constexpr long extent(int d, int nq, int nv, int nb) {
        : d == kNx ? nq + nv
        : d == k2Nv ? 2L * nv
        : d == k3Nv ? 3L * nv
+       : d == k10Nb ? 10L * nb
        : 0;
 }
 RBD_HD constexpr long values_of(const Shape& s, int nq, int nv, int nb) {
@@ -113,12 +115,14 @@ enum OpWorkspace : unsigned char {
 enum OpFailure : unsigned char {
   kNotPositiveDefinite,  // a mass matrix (or articulated inertia) that is not PD: names the joint
   kStepFailed,           // an integrator step: a joint that moves no mass, or a stage that overflowed
+  kNoMass,               // a robot of total mass 0: its centre of mass is undefined
 };
 
 // the scratch values (of the kernel's scalar) one sample needs
 enum OpScratch : unsigned char {
   kNoScratch,
   kScratchNv,              // nv
+  kScratch6Nv,             // 6 nv (a 6 x nv matrix)
   kScratch2NvNv,           // 2 nv²
   kScratchIntegrator,      // integrator_scratch_values(nq, nv)
   kScratchIntegratorGrad,  // integrator_gradient_scratch_values(nq, nv)

@@ -16,10 +16,13 @@
 
 #include "../algorithms/aba.hpp"
 #include "../algorithms/aba_derivatives.hpp"
+#include "../algorithms/centroidal.hpp"
 #include "../algorithms/crba.hpp"
+#include "../algorithms/energy.hpp"
 #include "../algorithms/integrators.hpp"
 #include "../algorithms/minv.hpp"
 #include "../algorithms/mujoco_convention.hpp"
+#include "../algorithms/regressor.hpp"
 #include "../algorithms/rnea.hpp"
 #include "../algorithms/rnea_derivatives.hpp"
 #include "../configuration.hpp"
@@ -294,6 +297,201 @@ struct PlantStepGradient {
 
 #undef RBD_STEP_ARGS
 
+// ---------------------------------------------------------------- energy and the Coriolis matrix
+
+struct KineticEnergy {
+  static constexpr OpSpec spec = {
+      "kinetic_energy", "energy", "energy", "T = ½ qdᵀ M(q) qd (a scalar).",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      1, {{"T", scalar()}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    a.out[0][0] = kinetic_energy(m, w, a.in[0], a.in[1]);
+    return true;
+  }
+};
+
+struct PotentialEnergy {
+  static constexpr OpSpec spec = {
+      "potential_energy", "energy", "energy",
+      "V = -Σ m_i g·c_i with g = (0, 0, gravity): the potential energy of the bodies' mass in the world, zero at "
+      "z = 0 (a scalar).",
+      2, {array("q", shape(kNq), kConfiguration), real("gravity", kGravity)},
+      1, {{"V", scalar()}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    a.out[0][0] = potential_energy(m, w, a.in[0], a.real[1]);
+    return true;
+  }
+};
+
+struct MechanicalEnergy {
+  static constexpr OpSpec spec = {
+      "mechanical_energy", "energy", "energy", "T + V (a scalar): kinetic_energy plus potential_energy.",
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), real("gravity", kGravity)},
+      1, {{"E", scalar()}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    const S T = kinetic_energy(m, w, a.in[0], a.in[1]);
+    a.out[0][0] = T + potential_energy(m, w, a.in[0], a.real[2]);
+    return true;
+  }
+};
+
+struct CoriolisMatrix {
+  static constexpr OpSpec spec = {
+      "coriolis_matrix", "coriolis_matrix", "energy",
+      "Coriolis matrix C (nv, nv) of Pinocchio's computeCoriolisMatrix: the Christoffel-consistent factorisation, "
+      "with C·qd + g = nonlinear_effects and Ṁ - 2C skew-symmetric.",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      1, {{"C", shape(kNv, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    coriolis_matrix(m, w, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+// ---------------------------------------------------------------- centre of mass and centroidal momentum
+// [linear; angular] about the centre of mass, world-aligned axes (algorithms/centroidal.hpp); a robot of
+// total mass 0 has no centre of mass (kNoMass)
+
+struct Com {
+  static constexpr OpSpec spec = {
+      "com", "com", "centroidal", "Centre of mass (3,) in the world frame.",
+      1, {array("q", shape(kNq), kConfiguration)},
+      1, {{"c", shape(3)}}, 0b1, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return center_of_mass(m, w, a.in[0], a.out[0]);
+  }
+};
+
+struct JacobianCom {
+  static constexpr OpSpec spec = {
+      "jacobian_com", "com", "centroidal",
+      "Jacobian of the centre of mass (3, nv): ċ = J_com·qd; also ∂c/∂δ along tangent steps. Equal to A[:3] / "
+      "total mass.",
+      1, {array("q", shape(kNq), kConfiguration)},
+      1, {{"J", shape(3, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return jacobian_com(m, w, a.in[0], a.out[0]);
+  }
+};
+
+struct Ccrba {
+  static constexpr OpSpec spec = {
+      "ccrba", "ccrba", "centroidal",
+      "Centroidal momentum matrix and momentum (A (6, nv), h (6,)), h = A·qd, by the composite rigid-body "
+      "algorithm (Pinocchio's ccrba: data.Ag, data.hg).",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      2, {{"A", shape(6, kNv)}, {"h", shape(6)}}, 0b11, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return ccrba(m, w, a.in[0], a.in[1], a.out[0], a.out[1]);
+  }
+};
+
+struct CentroidalMomentum {
+  static constexpr OpSpec spec = {
+      "centroidal_momentum", "ccrba", "centroidal", "Centroidal momentum h (6,) = A·qd, in one O(n) pass (no A).",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      1, {{"h", shape(6)}}, 0b1, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return centroidal_momentum(m, w, a.in[0], a.in[1], a.out[0]);
+  }
+};
+
+struct Dccrba {
+  static constexpr OpSpec spec = {
+      "dccrba", "dccrba", "centroidal",
+      "Analytic configuration derivative of A: dA (6, nv, nv) with dA[r, j, k] = ∂A[r, j]/∂δ_k along the tangent "
+      "step q ← integrate(q, δ·e_k).",
+      1, {array("q", shape(kNq), kConfiguration)},
+      1, {{"dA", shape(6, kNv, kNv)}}, 0b1, 0, kLinear, kScratch6Nv, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return dccrba(m, w, a.in[0], a.scratch, a.out[0]);  // A in scratch
+  }
+};
+
+struct CmmTimeVariation {
+  static constexpr OpSpec spec = {
+      "cmm_time_variation", "dccrba", "centroidal",
+      "Ȧ (6, nv) = Σ_k dA[:, :, k]·qd_k, the time variation of A along qd, in O(n) (Pinocchio's "
+      "computeCentroidalMapTimeVariation: data.dAg).",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      1, {{"Adot", shape(6, kNv)}}, 0b1, 0, kLinear, kScratch6Nv, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return cmm_time_variation(m, w, a.in[0], a.in[1], a.scratch, a.out[0]);  // A in scratch
+  }
+};
+
+struct CentroidalMomentumTimeVariation {
+  static constexpr OpSpec spec = {
+      "centroidal_momentum_time_variation", "dccrba", "centroidal",
+      "ḣ (6,) = A·qdd + Ȧ·qd, the rate of the centroidal momentum (gravity not included), in one O(n) pass "
+      "(Pinocchio's computeCentroidalMomentumTimeVariation: data.dhg).",
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("qdd", shape(kNv))},
+      1, {{"hdot", shape(6)}}, 0b1, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return centroidal_momentum_time_variation(m, w, a.in[0], a.in[1], a.in[2], a.out[0]);
+  }
+};
+
+struct CentroidalDynamicsDerivatives {
+  static constexpr OpSpec spec = {
+      "centroidal_dynamics_derivatives", "centroidal_dynamics_derivatives", "centroidal",
+      "(dh_dq, dhdot_dq, dhdot_dv, dhdot_da), each (6, nv), in O(n) (Pinocchio's "
+      "computeCentroidalDynamicsDerivatives): dh_dq = ∂h/∂δ at fixed qd (the true tangent derivative of ccrba's h, "
+      "the moving centre of mass included), dhdot_dq = ∂ḣ/∂δ, dhdot_dv = ∂ḣ/∂qd, dhdot_da = ∂ḣ/∂qdd = A.",
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("qdd", shape(kNv))},
+      4,
+      {{"dh_dq", shape(6, kNv)}, {"dhdot_dq", shape(6, kNv)}, {"dhdot_dv", shape(6, kNv)},
+       {"dhdot_da", shape(6, kNv)}},
+      0b1111, 0, kLinear, kNoScratch, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return centroidal_dynamics_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.out[0], a.out[1], a.out[2], a.out[3]);
+  }
+};
+
+// ---------------------------------------------------------------- inertial-parameter regressors
+// π = model.inertial_parameters() (10·nb,): per body [m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz], I about the
+// body-frame origin in body axes (algorithms/regressor.hpp)
+
+struct InverseDynamicsRegressor {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics_regressor", "regressor", "regressor",
+      "Y (nv, 10·nb) with inverse_dynamics(q, qd, qdd)[0] = Y @ π (no external forces); qdd=None means zero. "
+      "O(n·d).",
+      4,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
+       real("gravity", kGravity)},
+      1, {{"Y", shape(kNv, k10Nb)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    inverse_dynamics_regressor(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0]);
+    return true;
+  }
+};
+
+struct KineticEnergyRegressor {
+  static constexpr OpSpec spec = {
+      "kinetic_energy_regressor", "regressor", "regressor",
+      "y (10·nb,) with kinetic energy ½ qdᵀ M qd = y @ π (Pinocchio's computeKineticEnergyRegressor).",
+      2, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv))},
+      1, {{"y", shape(k10Nb)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    kinetic_energy_regressor(m, w, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct PotentialEnergyRegressor {
+  static constexpr OpSpec spec = {
+      "potential_energy_regressor", "regressor", "regressor",
+      "y (10·nb,) with potential energy -Σ m_b g·c_b = y @ π, g = (0, 0, gravity), zero at the world origin "
+      "(Pinocchio's computePotentialEnergyRegressor).",
+      2, {array("q", shape(kNq), kConfiguration), real("gravity", kGravity)},
+      1, {{"y", shape(k10Nb)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    potential_energy_regressor(m, w, a.in[0], a.real[1], a.out[0]);
+    return true;
+  }
+};
+
 // ---------------------------------------------------------------- the list
 
 template <typename... Op> struct OpList {
@@ -309,7 +507,11 @@ template <typename Op, typename First, typename... Rest> constexpr int index_of(
 // every registered operation; an operation's id is its index here
 using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crba, Minv, Aba, ForwardDynamics,
                       InverseDynamicsGradient, ForwardDynamicsGradient, Integrate, Difference, DIntegrate,
-                      DDifference, Integrator, IntegratorGradient, PlantStep, PlantStepGradient>;
+                      DDifference, Integrator, IntegratorGradient, PlantStep, PlantStepGradient, KineticEnergy,
+                      PotentialEnergy, MechanicalEnergy, CoriolisMatrix, Com, JacobianCom, Ccrba, CentroidalMomentum,
+                      Dccrba, CmmTimeVariation, CentroidalMomentumTimeVariation, CentroidalDynamicsDerivatives,
+                      InverseDynamicsRegressor,
+                      KineticEnergyRegressor, PotentialEnergyRegressor>;
 
 }  // namespace ops
 }  // namespace rbd
