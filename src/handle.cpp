@@ -175,7 +175,9 @@ void Handle::run(int op, const ops::OpCall& call) {
       if (call.out[o]) std::memset(call.out[o], 0, bytes * call.B * ops::out_values(e.spec->out[o], model_));
     return;
   }
-  if (engine_) return engine_->run_op(op, call);
+  // the engine for float32 and for batches; one float64 sample on the serial
+  // loop (a pack of W lanes would compute W - 1 copies of it)
+  if (engine_ && (dtype_ == "float32" || call.B > 1)) return engine_->run_op(op, call);
   std::lock_guard<std::mutex> lk(run_);
   const long n = ops::scratch_values(*e.spec, model_);
   if (static_cast<long>(op_scratch_.size()) < n) op_scratch_.resize(static_cast<size_t>(n));

@@ -80,8 +80,8 @@ class Handle {
 
   // ---- registered operations (ops/registry.hpp), by id, on call.B samples
   // whose arrays hold the handle's dtype: the values are checked
-  // (ops::check_call), then the engine (threads > 0 or float32) or the
-  // serial loop on the calling thread runs them. The Python bindings call this.
+  // (ops::check_call), then the engine (float32, or a float64 batch of B > 1 with
+  // threads > 0) or the serial loop on the calling thread runs them. The Python bindings call this.
   void run(int op, const ops::OpCall& call);
   bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
 

@@ -23,7 +23,8 @@ registered operations (`Handle.fast_operations()`, the C++ registry
 include/rbdkit/ops/registry.hpp: inverse dynamics, generalized gravity,
 nonlinear effects, crba, minv, aba, forward dynamics, both first-order
 gradients, the Lie-group operations, the integrator and plant step with
-their gradients; f_ext included; in the Pinocchio output convention, or on
+their gradients, energies, the Coriolis matrix, centroidal quantities and
+the regressors; f_ext included; in the Pinocchio output convention, or on
 a model without quaternion joints) are compiled callables of the C++
 rbd::Handle: they check their arguments and compute in the handle's dtype
 on the batch engine with `threads` threads. Every other operation computes

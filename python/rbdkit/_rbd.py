@@ -7,7 +7,8 @@ batch axis when any argument did.
 
 The registered operations (include/rbdkit/ops/registry.hpp: inverse and
 forward dynamics, M, M⁻¹, their gradients, the Lie-group operations, the
-integrators and the plant step) are generated from the C++ registry: each
+integrators and the plant step, energies, the Coriolis matrix, centroidal
+quantities and the regressors) are generated from the C++ registry: each
 instance holds one compiled callable per operation, which parses, checks
 and allocates in C++ (python/src/bind_ops.cpp). The class attributes of the
 same names carry their signatures and documentation.

@@ -444,9 +444,10 @@ TEST(Engine, OutputThatOverflowsIsNamed) {
         const std::string id = message([&] { e.inverse_dynamics<T>(B, q.data(), qd.data(), a.data(), T(kG), tau.data()); });
         EXPECT_NE(id.find("inverse_dynamics: output 0 is not finite at sample 37"), std::string::npos)
             << dtype << " threads " << threads << ": " << id;
+        // (output 1: dtau_dq, ops::InverseDynamicsGradient's second output)
         const std::string grad = message(
             [&] { e.inverse_dynamics_gradient<T>(B, q.data(), qd.data(), a.data(), T(kG), d1.data(), d2.data()); });
-        EXPECT_NE(grad.find("output 0 is not finite at sample 37"), std::string::npos)
+        EXPECT_NE(grad.find("inverse_dynamics_gradient: output 1 is not finite at sample 37"), std::string::npos)
             << dtype << " threads " << threads << ": " << grad;
         // the other samples are computed, and finite
         for (long b = 0; b < 37; ++b)
