@@ -21,11 +21,13 @@
 // the algorithm to add. A Handle keeps one workspace: one Handle per thread.
 //
 // threads > 0 gives the handle a batched CPU engine (engine.hpp) with that
-// many threads: inverse and forward dynamics, M, M⁻¹, both first-order
-// gradients, the integrator, the plant step and their gradients then run on
-// it whenever no f_ext is given (inputs are checked first, as above); results
-// are bit-identical whatever the thread count. threads = 0 (the default):
-// one sample at a time on the calling thread.
+// many threads. run(id, call) sends every registered operation
+// (ops/registry.hpp) there, f_ext included, for a batch of B > 1 (a float32
+// handle: always); the typed methods below send inverse and forward dynamics,
+// M, M⁻¹, both first-order gradients, the integrator, the plant step and
+// their gradients there when no f_ext is given. Inputs are checked first, as
+// above; results are bit-identical whatever the thread count. threads = 0
+// (the default): one sample at a time on the calling thread.
 #pragma once
 
 #include <Eigen/Core>

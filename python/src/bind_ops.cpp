@@ -159,10 +159,8 @@ bool as_real(PyObject* o, const char* name, double& x) {
     if (x == -1.0 && PyErr_Occurred()) return false;
   }
   if (!std::isfinite(x)) {
-    PyObject* r = PyObject_Repr(o);
-    std::string s = r ? PyUnicode_AsUTF8(r) : "?";
-    Py_XDECREF(r);
-    fail(PyExc_ValueError, std::string(name) + ": expected a finite number, got " + (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf"));
+    fail(PyExc_ValueError,
+         std::string(name) + ": expected a finite number, got " + (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf"));
     return false;
   }
   return true;
@@ -376,7 +374,6 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   }
 
   // ---- run (the GIL released for a batch)
-  const char* err = nullptr;
   PyObject* err_type = nullptr;
   std::string msg;
   PyThreadState* ts = c.B > 1 ? PyEval_SaveThread() : nullptr;
@@ -390,7 +387,6 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     err_type = PyExc_RuntimeError, msg = e.what();
   }
   if (ts) PyEval_RestoreThread(ts);
-  (void)err;
   if (err_type) return fail(err_type, msg);
 
   // ---- results: one array, or a tuple in output order; a 0-d one (a
