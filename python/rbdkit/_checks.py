@@ -8,15 +8,11 @@ from . import _core
 # Input bounds (C++: rbd::kMaxInput, kMaxAngle, kMaxTimeStep in
 # include/rbdkit/dynamics.hpp): beyond MAX_INPUT the dynamics overflow
 # float64, beyond MAX_ANGLE (rad, revolute and helical joints) sin and cos
-# keep no precision; dt is at most MAX_TIME_STEP (s). The float32 engine
-# paths of rbdkit.Handle take MAX_INPUT_F32 and MAX_ANGLE_F32 (float32's
-# range and spacing).
+# keep no precision; dt is at most MAX_TIME_STEP (s). (The float32 bounds,
+# rbd::kMaxInputF32 and kMaxAngleF32, are checked in C++.)
 MAX_INPUT = float(_core.MAX_INPUT)
 MAX_ANGLE = float(_core.MAX_ANGLE)
 MAX_TIME_STEP = float(_core.MAX_TIME_STEP)
-MAX_INPUT_F32 = 1e15
-MAX_ANGLE_F32 = 1e4
-ANGLE_JOINTS = ("revolute", "continuous", "helical")
 
 
 def as_real_array(x, name):

@@ -6,8 +6,6 @@ derivative along q ← integrate(q, δ·e_k), so every derivative has NV columns
 per configuration, floating bases and spherical joints included.
 """
 
-import numpy as np
-
 from . import _core
 from ._checks import Batch, check_scalar
 

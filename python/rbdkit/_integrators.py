@@ -35,17 +35,7 @@ def check_dt(dt):
 class IntegratorsMixin:
     """One-step integration and its Jacobian; mixed into rbdkit.RBD."""
 
-    def _step_args(self, b, q, qd, u, f_ext):
-        return self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u"), self._fext(b, f_ext)
-
     # ---- the plant layer's state form, x = [q; qd]
-    def _split_state(self, x, name="x"):
-        """(q, qd) views of x (nq + nv,) or (B, nq + nv)"""
-        b = Batch()
-        ix = b.add(x, name, (self.nq + self.nv,), ("nq+nv",))
-        X = b.ret(b.get(ix))
-        return X[..., :self.nq], X[..., self.nq:]
-
     def plant_step_hessian(self, x, u, dt, integrator_type="euler", gravity=GRAVITY, output_convention="pinocchio"):
         """H (2·nv, 3·nv, 3·nv): the second-order sensitivity of plant_step.
 

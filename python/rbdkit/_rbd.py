@@ -20,7 +20,7 @@ import numpy as np
 
 from . import _core
 from ._centroidal import CentroidalMixin
-from ._checks import Batch, check_choice, check_scalar, check_values
+from ._checks import Batch, check_choice, check_values
 from ._costs import CostsMixin
 from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin

@@ -19,20 +19,6 @@ using rbd_py::width;
 
 
 void bind_derivatives(nb::module_& m) {
-  m.def("inverse_dynamics_gradient",
-        [](const Model& md, In q, In qd, std::optional<In> qdd, std::optional<In> fext, double g, Out out) {
-          nb::gil_scoped_release r;
-          rbd::batch::inverse_dynamics_gradient(md, batch_of(q), q.data(), qd.data(), opt(qdd), opt(fext), g,
-                                                out.data());
-        },
-        "model"_a, "q"_a, "qd"_a, "qdd"_a.none(), "fext"_a.none(), "gravity"_a, "out"_a);
-  m.def("forward_dynamics_gradient",
-        [](const Model& md, In q, In qd, In tau, std::optional<In> fext, double g, Out dq, Out dv, Out qdd) {
-          nb::gil_scoped_release r;
-          rbd::batch::forward_dynamics_gradient(md, batch_of(q), q.data(), qd.data(), tau.data(), opt(fext), g,
-                                                dq.data(), dv.data(), qdd.data());
-        },
-        "model"_a, "q"_a, "qd"_a, "tau"_a, "fext"_a.none(), "gravity"_a, "dq"_a, "dv"_a, "qdd"_a);
   m.def("fext_gradient", [](const Model& md, In q, Out dtau, Out dqdd) {
     nb::gil_scoped_release r;
     rbd::batch::fext_gradient(md, batch_of(q), q.data(), dtau.data(), dqdd.data());

@@ -19,23 +19,6 @@ using rbd_py::width;
 
 void bind_integrators(nb::module_& m) {
   m.def("integrator_from_name", &rbd::integrator_from_name, "name"_a);
-  m.def("integrator",
-        [](const Model& md, In q, In v, In u, std::optional<In> fext, double dt, double g, int type, Out x, int conv) {
-          nb::gil_scoped_release r;
-          rbd::batch::integrator(md, static_cast<long>(q.shape(0)), q.data(), v.data(), u.data(), opt(fext), dt, g,
-                                 type, x.data(), conv);
-        },
-        "model"_a, "q"_a, "v"_a, "u"_a, "fext"_a.none(), "dt"_a, "gravity"_a, "type"_a, "x"_a,
-        "convention"_a = 0);
-  m.def("integrator_gradient",
-        [](const Model& md, In q, In v, In u, std::optional<In> fext, double dt, double g, int type, Out x, Out AB,
-           int conv) {
-          nb::gil_scoped_release r;
-          rbd::batch::integrator_gradient(md, static_cast<long>(q.shape(0)), q.data(), v.data(), u.data(), opt(fext),
-                                          dt, g, type, x.data(), AB.data(), conv);
-        },
-        "model"_a, "q"_a, "v"_a, "u"_a, "fext"_a.none(), "dt"_a, "gravity"_a, "type"_a, "x"_a, "AB"_a,
-        "convention"_a = 0);
   m.def("plant_step_hessian",
         [](const Model& md, In q, In v, In u, double dt, double g, int type, Out x, Out AB, Out H, int conv) {
           nb::gil_scoped_release r;

@@ -130,53 +130,11 @@ NB_MODULE(_core, m) {
       .def("inertial_parameters", &Model::inertial_parameters)
       .def("with_inertial_parameters", &Model::with_inertial_parameters, "pi"_a);
 
-  // ---- batched dynamics: inputs (B, n) C-contiguous float64, outputs preallocated
-  m.def("inverse_dynamics",
-        [](const Model& md, In q, In qd, std::optional<In> qdd, std::optional<In> fext, double g, Out tau,
-           std::optional<Out> v, std::optional<Out> a, std::optional<Out> f) {
-          nb::gil_scoped_release r;
-          rbd::batch::inverse_dynamics(md, batch_of(q), q.data(), qd.data(), opt(qdd), opt(fext), g, tau.data(),
-                                       v ? v->data() : nullptr, a ? a->data() : nullptr, f ? f->data() : nullptr);
-        },
-        "model"_a, "q"_a, "qd"_a, "qdd"_a.none(), "fext"_a.none(), "gravity"_a, "tau"_a, "v"_a.none(),
-        "a"_a.none(), "f"_a.none());
-  m.def("crba", [](const Model& md, In q, Out M) {
-    nb::gil_scoped_release r;
-    rbd::batch::crba(md, batch_of(q), q.data(), M.data());
-  });
-  m.def("minv", [](const Model& md, In q, bool dense, Out Mi) {
-    nb::gil_scoped_release r;
-    rbd::batch::minv(md, batch_of(q), q.data(), dense, Mi.data());
-  });
-  m.def("aba",
-        [](const Model& md, In q, In qd, In tau, std::optional<In> fext, double g, Out qdd) {
-          nb::gil_scoped_release r;
-          rbd::batch::aba(md, batch_of(q), q.data(), qd.data(), tau.data(), opt(fext), g, qdd.data());
-        },
-        "model"_a, "q"_a, "qd"_a, "tau"_a, "fext"_a.none(), "gravity"_a, "qdd"_a);
-  m.def("forward_dynamics",
-        [](const Model& md, In q, In qd, In tau, std::optional<In> fext, double g, Out qdd) {
-          nb::gil_scoped_release r;
-          rbd::batch::forward_dynamics(md, batch_of(q), q.data(), qd.data(), tau.data(), opt(fext), g, qdd.data());
-        },
-        "model"_a, "q"_a, "qd"_a, "tau"_a, "fext"_a.none(), "gravity"_a, "qdd"_a);
-
-  // ---- configuration space
+  // ---- configuration space (the registered operations are bound by bind_ops.cpp;
+  // Model.random_configuration takes this one before any RBD exists)
   m.def("integrate", [](const Model& md, In q, In v, Out out) {
     nb::gil_scoped_release r;
     rbd::batch::integrate(md, batch_of(q), q.data(), v.data(), out.data());
-  });
-  m.def("difference", [](const Model& md, In q0, In q1, Out out) {
-    nb::gil_scoped_release r;
-    rbd::batch::difference(md, batch_of(q0), q0.data(), q1.data(), out.data());
-  });
-  m.def("dintegrate", [](const Model& md, In q, In v, int arg, Out J) {
-    nb::gil_scoped_release r;
-    rbd::batch::dintegrate(md, batch_of(q), q.data(), v.data(), arg, J.data());
-  });
-  m.def("ddifference", [](const Model& md, In q0, In q1, int arg, Out J) {
-    nb::gil_scoped_release r;
-    rbd::batch::ddifference(md, batch_of(q0), q0.data(), q1.data(), arg, J.data());
   });
   m.def("d2integrate", [](const Model& md, In q, In v, int arg1, int arg2, Out H) {
     nb::gil_scoped_release r;
