@@ -34,10 +34,13 @@ cmake --build build/sanitize -j "$JOBS"
 JOBS="$JOBS" scripts/fuzz.sh
 
 # ---- second-order derivatives against Pinocchio's C++ library (not in its
-# Python module): one program built against the `pin` wheel (build/pinocchio_so)
-JOBS="$JOBS" PYTHON="$PY" tests/pinocchio_so/run.sh
+# Python module): one program built against the `pin` wheel
+# (built in build/cpp: the library compiled above is reused)
+RBDKIT_PINOCCHIO_BUILD=build/cpp JOBS="$JOBS" PYTHON="$PY" tests/pinocchio_so/run.sh
 
 # ---- Python: build and install the package, then pytest (last: its summary closes the run)
 echo "building the Python package (pip install .) ..."
-PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation .
+# (linked to build/cpp's librbdkit.a: the library is not compiled a second time)
+PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation . \
+  -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/cpp/librbdkit.a"
 "$PY" -m pytest -q -p no:cacheprovider tests/python

@@ -7,7 +7,7 @@
 //
 // Generated from OpList, in its order (an operation's index is its id):
 //   ops::op_table()        the runtime table (ops/table.hpp, src/ops.cpp)
-//   Engine::run_op          the engine's routes (src/engine.cpp)
+//   Engine::run_op          the engine's routes (src/engine/engine_impl.hpp)
 //   Handle::run             checks, the serial loop or the engine (src/handle.cpp)
 //   rbdkit._core op calls   the Python bindings and their checks (python/src/bind_ops.cpp)
 //
