@@ -209,7 +209,8 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
     }
     // a configuration, or a state [q; qd] whose first nq values are one
     for (long s = 0; s < samples; ++s) {
-      check_configuration_values(m, x + s * n, a.name, c.batched[k], s, convention);
+      check_configuration_values(m, x + s * n, a.name, c.batched[k], s,
+                                 a.check == kMujocoConfiguration ? kMujocoConvention : convention);
       if (n > m.nq && !finite_values(x + s * n, n)) throw_values(x + s * n, n, label_of(a.name, c.batched[k], s));
     }
   }

@@ -18,16 +18,6 @@ class DerivativesMixin:
     def _cols(self, b, x, name):
         return b.add(x, name, (self.nb, 6, 6), ("nb", "6", "6"))
 
-    def f_ext_gradient(self, q):
-        """(∂c/∂f_ext, ∂qdd/∂f_ext), each (nb, nv, 6): per body b, -J_bᵀ and
-        M⁻¹ J_bᵀ with J_b the body's Jacobian in its own frame (f_ext is
-        expressed in the body frame, [linear; angular])."""
-        b = Batch()
-        iq = self._q(b, q)
-        dtau, dqdd = b.out(self.nb, self.nv, 6), b.out(self.nb, self.nv, 6)
-        _core.fext_gradient(self._m, b.get(iq), dtau, dqdd)
-        return b.ret(dtau), b.ret(dqdd)
-
     # ---- per-pass helpers
     def inverse_dynamics_fpass(self, q, qd, qdd=None, gravity=GRAVITY, f_ext=None):
         """RNEA forward pass: per body (nb, 6), body frame: velocity v,

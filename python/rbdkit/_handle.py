@@ -24,8 +24,10 @@ include/rbdkit/ops/registry.hpp: inverse dynamics, generalized gravity,
 nonlinear effects, crba, minv, aba, forward dynamics, both first-order
 gradients, the Lie-group operations, the integrator and plant step with
 their gradients, energies, the Coriolis matrix, centroidal quantities and
-the regressors; f_ext included; in the Pinocchio output convention, or on
-a model without quaternion joints) are compiled callables of the C++
+the regressors, f_ext_gradient, the second-order derivatives; f_ext
+included; in the Pinocchio output convention, or on a model without
+quaternion joints; and the conversions between the conventions, in either)
+are compiled callables of the C++
 rbd::Handle: they check their arguments and compute in the handle's dtype
 on the batch engine with `threads` threads. Every other operation computes
 in float64 through rbdkit.RBD and its results are rounded to the dtype.
@@ -148,9 +150,8 @@ class Handle:
         # dtype on the engine with these threads, as compiled callables
         # (instance attributes, shadowing the generic methods of the class)
         self._core = _core.OpHandle(model._core, list(self.algorithms), self.threads, self.dtype.name)
-        if self._routable():
-            for op in self._core.operations():
-                self.__dict__[op] = self._core.op(op, True)
+        for op in self.fast_operations():
+            self.__dict__[op] = self._core.op(op, True)
 
     # ---- what the handle has
     @staticmethod
@@ -177,12 +178,9 @@ class Handle:
         """the registered operations (include/rbdkit/ops/registry.hpp) this
         handle computes in C++ in its dtype on the engine with its threads,
         f_ext included; the others compute in float64 (rounded to the dtype)"""
-        if not self._routable():
-            return []
-        return list(self._core.operations())
-
-    def _routable(self):
-        return self.output_convention == "pinocchio" or self._convention_noop
+        routable = self.output_convention == "pinocchio" or self._convention_noop
+        return [op for op in self._core.operations()
+                if routable or OPERATION_ALGORITHM[op] in CONVENTION_NEUTRAL]
 
     # ---- dispatch
     def _call(self, op, args, kwargs):

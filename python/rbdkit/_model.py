@@ -151,10 +151,9 @@ class Model:
         q = as_real_array(qpos, "qpos")
         if q.shape != (self.nq,):
             raise ValueError(f"qpos: expected one configuration of shape ({self.nq},), got shape {q.shape}")
-        Tt = np.empty((self.nv, self.nv))  # row k: T e_k (force_to_mujoco is u -> T u)
-        _core.force_to_mujoco(self._core, np.ascontiguousarray(np.repeat(q[None], self.nv, axis=0)),
-                              np.eye(self.nv), Tt)
-        return Tt.T.copy()
+        # row k: T e_k (force_to_mujoco is u -> T u; qpos broadcast over the rows)
+        to_mujoco = _core.OpHandle(self._core, [], 0, "float64").op("force_to_mujoco", False)
+        return to_mujoco(q, np.eye(self.nv)).T.copy()
 
     def random_configuration(self, rng=None, scale=1.0):
         """a random configuration: neutral ⊕ uniform(-scale, scale) tangent

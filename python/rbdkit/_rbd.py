@@ -26,15 +26,13 @@ from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
-from ._mujoco import MujocoMixin
 from ._regressor import RegressorMixin
-from ._second_order import SecondOrderMixin
 
 GRAVITY = -9.81
 
 
 class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin,
-          CentroidalMixin, SecondOrderMixin, MujocoMixin):
+          CentroidalMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):

@@ -1,5 +1,8 @@
 """Second-order dynamics derivatives on rbdkit.RBD (analytical IDSVA-SO
-recursions and the FDSVA-SO relations, in the C++ core).
+recursions and the FDSVA-SO relations, in the C++ core): idsva_so,
+idsva_so_body_frame, idsva_so_world_frame and fdsva_so are registered
+operations (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself;
+this module documents their tensors.
 
 Every tensor is (nv, nv, nv) (with a leading batch axis B when an argument
 is batched), index order [i, j, k]:
@@ -20,51 +23,3 @@ d2tau_dq2[i, j, k] - d2tau_dq2[i, k, j] = ∂tau_i/∂q · [e_k, e_j] (the Lie
 bracket of the two directions); its symmetric part is the Hessian of
 δ ↦ tau(integrate(q, δ)) at δ = 0.
 """
-
-from . import _core
-from ._checks import Batch, check_scalar
-
-GRAVITY = -9.81
-_BODY, _WORLD, _AUTO = 0, 1, 2  # rbd::SecondOrderFrame
-
-
-class SecondOrderMixin:
-    """Second-order derivatives; mixed into rbdkit.RBD."""
-
-    def _idsva_so(self, q, qd, qdd, gravity, frame):
-        b = Batch()
-        iq, iv, ia = self._q(b, q), self._v(b, qd, "qd"), self._v(b, qdd, "qdd")
-        g = check_scalar(gravity, "gravity")
-        n = self.nv
-        out = [b.out(n, n, n) for _ in range(4)]
-        _core.idsva_so(self._m, b.get(iq), b.get(iv), b.get(ia), g, frame, *out)
-        return tuple(b.ret(o) for o in out)
-
-    def idsva_so_body_frame(self, q, qd, qdd, gravity=GRAVITY):
-        """(d2tau_dq2, d2tau_dqd2, d2tau_dqdqd, dM_dq), each (nv, nv, nv), of
-        tau = inverse_dynamics(q, qd, qdd)[0], by the body-frame recursion
-        (body-frame propagation, inertias and motion subspaces)."""
-        return self._idsva_so(q, qd, qdd, gravity, _BODY)
-
-    def idsva_so_world_frame(self, q, qd, qdd, gravity=GRAVITY):
-        """The same tensors as idsva_so_body_frame by the world-frame recursion
-        (world-frame propagation with gravity in the sweep; composites add
-        without transforms). Equal to the body-frame variant to rounding."""
-        return self._idsva_so(q, qd, qdd, gravity, _WORLD)
-
-    def idsva_so(self, q, qd, qdd, gravity=GRAVITY):
-        """(d2tau_dq2, d2tau_dqd2, d2tau_dqdqd, dM_dq): the body-frame variant
-        for a fixed base, the world-frame one for a floating base."""
-        return self._idsva_so(q, qd, qdd, gravity, _AUTO)
-
-    def fdsva_so(self, q, qd, u, gravity=GRAVITY):
-        """(d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, d2qdd_dqdu), each (nv, nv, nv),
-        of qdd = forward_dynamics(q, qd, u): -M⁻¹ times the second-order
-        inverse-dynamics terms plus the ∂M/∂q·∂qdd terms, at qdd = FD(q, qd, u)."""
-        b = Batch()
-        iq, iv, iu = self._q(b, q), self._v(b, qd, "qd"), self._v(b, u, "u")
-        g = check_scalar(gravity, "gravity")
-        n = self.nv
-        out = [b.out(n, n, n) for _ in range(4)]
-        _core.fdsva_so(self._m, b.get(iq), b.get(iv), b.get(iu), g, *out)
-        return tuple(b.ret(o) for o in out)

@@ -201,7 +201,8 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
                              "to its algorithms")
         if ddp and hasattr(handle, "has") and not handle.has("plant_step_hessian"):
             raise ValueError("handle: ddp=True needs plant_step_hessian; add 'plant_step_hessian' to its algorithms")
-        if isinstance(handle, Handle) and handle.dtype == np.float64 and handle._routable():
+        if (isinstance(handle, Handle) and handle.dtype == np.float64
+                and "plant_step_gradient" in handle.fast_operations()):
             # an rbdkit.Handle's derivatives are the C++ handle's: the solver
             # builds one with its threads (no round trip through Python)
             opts["threads"] = handle.threads

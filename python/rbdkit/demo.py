@@ -19,7 +19,6 @@ import json
 import os
 import platform
 import sys
-import time
 
 import numpy as np
 
@@ -168,7 +167,6 @@ def run(task="reach", robot=None, horizon=None, dt=None, integrator="rk4", targe
     P = ee_positions(model, res.X, ee_frame, ee_off)
     err = float(np.linalg.norm(P[-1] - setup["ee_target"]))
     viol = max_limit_violation(model, res.X, res.U)
-    iters = max(res.iterations, 1)
     it_times = [r["time"] for r in res.log[1:]]
     summary = dict(status=res.status, converged=bool(res.converged), iterations=res.iterations,
                    final_ee_error_m=err, max_limit_violation=viol, final_cost=res.cost,

@@ -19,10 +19,6 @@ using rbd_py::width;
 
 
 void bind_derivatives(nb::module_& m) {
-  m.def("fext_gradient", [](const Model& md, In q, Out dtau, Out dqdd) {
-    nb::gil_scoped_release r;
-    rbd::batch::fext_gradient(md, batch_of(q), q.data(), dtau.data(), dqdd.data());
-  });
   m.def("inverse_dynamics_fpass",
         [](const Model& md, In q, In qd, std::optional<In> qdd, std::optional<In> fext, double g, Out v, Out a,
            Out f) {

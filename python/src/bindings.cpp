@@ -33,7 +33,6 @@ using rbd_py::width;
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
 void bind_regressor(nb::module_& m);  // bind_regressor.cpp
 void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
-void bind_second_order(nb::module_& m);  // bind_second_order.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
 void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
@@ -172,7 +171,6 @@ NB_MODULE(_core, m) {
   bind_kinematics(m);
   bind_regressor(m);
   bind_centroidal(m);
-  bind_second_order(m);
   bind_handle(m);
   bind_mujoco(m);
   bind_solver(m);

@@ -16,9 +16,11 @@
 #include "rbdkit/dynamics.hpp"
 #include "rbdkit/handle.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/mujoco_api.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
 #include "rbdkit/regressor_api.hpp"
+#include "rbdkit/second_order_api.hpp"
 #include "test_models.hpp"
 
 using rbd::Model;
@@ -54,9 +56,11 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
       for (long s = 0; s < B; ++s) {
         double* xs = x.data() + s * n;
         for (long j = 0; j < n; ++j) xs[j] = (a.shape.d[0] == ops::kNb ? 0.3 : 1.0) * U(rng);
-        if (a.check == ops::kConfiguration) {  // a configuration (the state's first nq values)
+        if (a.check == ops::kConfiguration || a.check == ops::kMujocoConfiguration) {
+          // a configuration (the state's first nq values), in MuJoCo's layout where asked
           for (double& d : dv) d = U(rng);
           rbd::integrate(m.view(), q0.data(), dv.data(), xs);
+          if (a.check == ops::kMujocoConfiguration) rbd::configuration_to_mujoco(m.view(), xs, xs);
         }
       }
       in.call.in[k] = x.data();
@@ -115,10 +119,12 @@ std::vector<double> sample_of(const std::vector<double>& all, long w, long s) {
 }
 
 // float32 against float64, per family: M⁻¹ and what is built on it carry
-// cond(M)·ε_float32 (docs/engine.md)
+// cond(M)·ε_float32, FDSVA-SO (M⁻¹ applied to terms that carry it already)
+// cond(M)²·ε_float32 (docs/engine.md)
 double float32_bound(const ops::OpSpec& op) {
   const std::string f = op.family;
-  return f == "minv" || f == "aba_derivatives" || f == "integrators" ? 2e-3 : 1e-4;
+  if (f == "fdsva_so") return 5e-2;
+  return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
 }
 
 class RegistryModels : public ::testing::TestWithParam<ModelCase> {};
@@ -148,7 +154,9 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "integrator", "kinetic_energy", "potential_energy", "mechanical_energy", "coriolis_matrix", "com",
         "jacobian_com", "ccrba", "centroidal_momentum", "dccrba", "cmm_time_variation",
         "centroidal_momentum_time_variation", "centroidal_dynamics_derivatives", "inverse_dynamics_regressor",
-        "kinetic_energy_regressor", "potential_energy_regressor"}) {
+        "kinetic_energy_regressor", "potential_energy_regressor", "f_ext_gradient", "idsva_so_body_frame",
+        "idsva_so_world_frame", "idsva_so", "fdsva_so", "state_to_mujoco", "state_from_mujoco", "force_to_mujoco",
+        "force_from_mujoco", "mujoco_integrate", "mujoco_difference"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
@@ -220,6 +228,37 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       rbd::batch::inverse_dynamics_regressor(m, B, in_of(0), in_of(1), in_of(2), -9.81, ref.data());
     } else if (n == "kinetic_energy_regressor") {
       rbd::batch::kinetic_energy_regressor(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "f_ext_gradient") {  // per sample the two (nb x nv x 6) blocks
+      const long blk = m.nb() * nv * 6;
+      std::vector<double> d(2 * B * blk);
+      rbd::batch::fext_gradient(m, B, in_of(0), d.data(), d.data() + B * blk);
+      for (long s = 0; s < B; ++s)
+        for (int o = 0; o < 2; ++o) std::copy_n(d.data() + (o * B + s) * blk, blk, ref.data() + s * w + o * blk);
+    } else if (n.rfind("idsva_so", 0) == 0 || n == "fdsva_so") {  // per sample the four (nv x nv x nv) blocks
+      const long blk = nv * nv * nv;
+      std::vector<double> d(4 * B * blk);
+      double* o[4] = {d.data(), d.data() + B * blk, d.data() + 2 * B * blk, d.data() + 3 * B * blk};
+      if (n == "fdsva_so")
+        rbd::batch::fdsva_so(m, B, in_of(0), in_of(1), in_of(2), -9.81, o[0], o[1], o[2], o[3]);
+      else
+        rbd::batch::idsva_so(m, B, in_of(0), in_of(1), in_of(2), -9.81,
+                             n == "idsva_so" ? rbd::kSoAuto : n == "idsva_so_body_frame" ? rbd::kSoBodyFrame
+                                                                                         : rbd::kSoWorldFrame,
+                             o[0], o[1], o[2], o[3]);
+      for (long s = 0; s < B; ++s)
+        for (int k = 0; k < 4; ++k) std::copy_n(o[k] + s * blk, blk, ref.data() + s * w + k * blk);
+    } else if (n == "state_to_mujoco") {
+      rbd::batch::state_to_mujoco(m, B, in_of(0), ref.data());
+    } else if (n == "state_from_mujoco") {
+      rbd::batch::state_from_mujoco(m, B, in_of(0), ref.data());
+    } else if (n == "force_to_mujoco") {
+      rbd::batch::force_to_mujoco(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "force_from_mujoco") {
+      rbd::batch::force_from_mujoco(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "mujoco_integrate") {
+      rbd::batch::mujoco_integrate(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n == "mujoco_difference") {
+      rbd::batch::mujoco_difference(m, B, in_of(0), in_of(1), ref.data());
     } else {
       ASSERT_EQ(n, "potential_energy_regressor");
       rbd::batch::potential_energy_regressor(m, B, in_of(0), -9.81, ref.data());
@@ -304,6 +343,17 @@ TEST(Registry, ChecksNameTheArgumentAndSample) {
     bad = in;
     bad.call.real[4] = std::nan("");
     EXPECT_EQ(message([&] { run_any(bad); }).rfind("gravity: expected a finite number", 0), 0u);
+    // a configuration in MuJoCo's layout: its quaternion is checked there (w x y z)
+    const int mj = ops::find_op("mujoco_integrate");
+    Inputs qpos = make_inputs(m, *ops::op_table()[mj].spec, 2, 1, false);
+    qpos.arrays[0][m.nq + 3] *= 1.5;  // sample 1's free-flyer quaternion
+    qpos.call.in[0] = qpos.arrays[0].data();
+    const std::string mj_msg = message([&] {
+      if (std::string(dtype) == "float64") run<double>(h, mj, qpos);
+      else run<float>(h, mj, qpos);
+    });
+    EXPECT_NE(mj_msg.find("qpos[1]: the quaternion of joint 'root_joint'"), std::string::npos) << mj_msg;
+    EXPECT_NE(mj_msg.find("w x y z, MuJoCo layout"), std::string::npos) << mj_msg;
   }
   // an operation the handle was not built with names the algorithm to add
   rbd::Handle only_crba(m, {"crba"});

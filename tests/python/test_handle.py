@@ -467,8 +467,12 @@ def test_f_ext_and_options_run_in_cpp(hyq):
     assert_same(h.minv(v["q"], output_dense=False), rbd.minv(v["q"], output_dense=False), rtol=1e-10)
     assert_same(h.aba(v["q"], v["qd"], v["tau"], f_ext=[]), rbd.aba(v["q"], v["qd"], v["tau"]), rtol=1e-10)
     assert "dccrba_fd" not in h.fast_operations()  # not a registered operation
-    # a handle with the MuJoCo convention on a floating base keeps the registered ops on RBD's path
-    assert rbdkit.Handle(hyq, output_convention="mujoco").fast_operations() == []
+    # a handle with the MuJoCo convention on a floating base keeps the registered ops on RBD's path,
+    # but for the conversions between the conventions (the same in either)
+    hm = rbdkit.Handle(hyq, output_convention="mujoco")
+    assert set(hm.fast_operations()) == set(ALGORITHMS["mujoco_convention"][0])
+    assert type(hm.state_to_mujoco).__name__ == "Operation"
+    assert_same(hm.force_from_mujoco(v["qpos"], v["u"]), rbd.force_from_mujoco(v["qpos"], v["u"]), rtol=0)
 
 
 def test_every_registered_operation_is_fast(hyq):

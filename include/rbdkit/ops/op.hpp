@@ -77,6 +77,7 @@ enum ValueCheck : unsigned char {
   kFiniteValues,   // finite, magnitude at most kMaxInput
   kConfiguration,  // a configuration: finite, angles at most kMaxAngle, unit quaternions (in the op's
                    // convention when it has a kConvention parameter)
+  kMujocoConfiguration,  // the same in MuJoCo's layout (quaternions w x y z), whatever the op's convention
 };
 
 struct ArgSpec {

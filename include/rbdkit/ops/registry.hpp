@@ -19,6 +19,7 @@
 #include "../algorithms/centroidal.hpp"
 #include "../algorithms/crba.hpp"
 #include "../algorithms/energy.hpp"
+#include "../algorithms/fdsva_so.hpp"
 #include "../algorithms/integrators.hpp"
 #include "../algorithms/minv.hpp"
 #include "../algorithms/mujoco_convention.hpp"
@@ -184,6 +185,83 @@ struct ForwardDynamicsGradient {
   }
 };
 
+struct FExtGradient {
+  static constexpr OpSpec spec = {
+      "f_ext_gradient", "f_ext_gradient", "aba_derivatives",
+      "(∂c/∂f_ext, ∂qdd/∂f_ext), each (nb, nv, 6): per body b, -J_bᵀ and M⁻¹ J_bᵀ with J_b the body's Jacobian in "
+      "its own frame (f_ext is expressed in the body frame, [linear; angular]).",
+      1, {array("q", shape(kNq), kConfiguration)},
+      2, {{"dtau_dfext", shape(kNb, kNv, 6)}, {"dqdd_dfext", shape(kNb, kNv, 6)}}, 0b11, 0, kFull, kNoScratch,
+      kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return fext_derivatives(m, w, a.in[0], a.out[0], a.out[1]);
+  }
+};
+
+// ---------------------------------------------------------------- second-order derivatives (IDSVA-SO, FDSVA-SO)
+// Each tensor is (nv, nv, nv), index order [i, j, k]; rbdkit/algorithms/idsva_so.hpp and fdsva_so.hpp.
+
+#define RBD_SO_ARGS(third)                                                                              \
+  4, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array(third, shape(kNv)),       \
+      real("gravity", kGravity)}
+#define RBD_SO_IDSVA_OUTS                                                                                \
+  4, {{"d2tau_dq2", shape(kNv, kNv, kNv)}, {"d2tau_dqd2", shape(kNv, kNv, kNv)},                       \
+      {"d2tau_dqdqd", shape(kNv, kNv, kNv)}, {"dM_dq", shape(kNv, kNv, kNv)}},                          \
+      0b1111, 0, kFull, kNoScratch, kNotPositiveDefinite
+
+struct IdsvaSoBodyFrame {
+  static constexpr OpSpec spec = {
+      "idsva_so_body_frame", "idsva_so", "second_order",
+      "(d2tau_dq2, d2tau_dqd2, d2tau_dqdqd, dM_dq), each (nv, nv, nv), of tau = inverse_dynamics(q, qd, qdd)[0], "
+      "by the body-frame recursion (body-frame propagation, inertias and motion subspaces).",
+      RBD_SO_ARGS("qdd"), RBD_SO_IDSVA_OUTS};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    idsva_so_body_frame(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0], a.out[1], a.out[2], a.out[3]);
+    return true;
+  }
+};
+
+struct IdsvaSoWorldFrame {
+  static constexpr OpSpec spec = {
+      "idsva_so_world_frame", "idsva_so", "second_order",
+      "The same tensors as idsva_so_body_frame by the world-frame recursion (world-frame propagation with gravity "
+      "in the sweep; composites add without transforms). Equal to the body-frame variant to rounding.",
+      RBD_SO_ARGS("qdd"), RBD_SO_IDSVA_OUTS};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    idsva_so_world_frame(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0], a.out[1], a.out[2], a.out[3]);
+    return true;
+  }
+};
+
+struct IdsvaSo {
+  static constexpr OpSpec spec = {
+      "idsva_so", "idsva_so", "second_order",
+      "(d2tau_dq2, d2tau_dqd2, d2tau_dqdqd, dM_dq): the body-frame variant for a fixed base, the world-frame one "
+      "for a floating base.",
+      RBD_SO_ARGS("qdd"), RBD_SO_IDSVA_OUTS};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    idsva_so(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0], a.out[1], a.out[2], a.out[3]);
+    return true;
+  }
+};
+
+struct FdsvaSo {
+  static constexpr OpSpec spec = {
+      "fdsva_so", "fdsva_so", "fdsva_so",
+      "(d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, d2qdd_dqdu), each (nv, nv, nv), of qdd = forward_dynamics(q, qd, u): "
+      "-M⁻¹ times the second-order inverse-dynamics terms plus the ∂M/∂q·∂qdd terms, at qdd = FD(q, qd, u).",
+      RBD_SO_ARGS("u"),
+      4, {{"d2qdd_dq2", shape(kNv, kNv, kNv)}, {"d2qdd_dqd2", shape(kNv, kNv, kNv)},
+          {"d2qdd_dqdqd", shape(kNv, kNv, kNv)}, {"d2qdd_dqdu", shape(kNv, kNv, kNv)}},
+      0b1111, 0, kFull, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return fdsva_so(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0], a.out[1], a.out[2], a.out[3]);
+  }
+};
+
+#undef RBD_SO_ARGS
+#undef RBD_SO_IDSVA_OUTS
+
 // ---------------------------------------------------------------- configuration space (Lie-group operations)
 
 struct Integrate {
@@ -296,6 +374,83 @@ struct PlantStepGradient {
 };
 
 #undef RBD_STEP_ARGS
+
+// ---------------------------------------------------------------- the MuJoCo convention's conversions
+// (algorithms/mujoco_convention.hpp); qpos: a configuration in MuJoCo's layout
+
+struct StateToMujoco {
+  static constexpr OpSpec spec = {
+      "state_to_mujoco", "mujoco_convention", "mujoco_convention",
+      "x = [q; qd] (nq + nv,) in our convention -> [qpos; qvel] in MuJoCo's.",
+      1, {array("x", shape(kNx), kConfiguration)},
+      1, {{"x_mj", shape(kNx)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    configuration_to_mujoco(m, a.in[0], a.out[0]);
+    rotate_to_mujoco(m, static_cast<const S*>(a.out[0]), a.in[0] + m.nq, a.out[0] + m.nq);
+    return true;
+  }
+};
+
+struct StateFromMujoco {
+  static constexpr OpSpec spec = {
+      "state_from_mujoco", "mujoco_convention", "mujoco_convention",
+      "[qpos; qvel] (nq + nv,) in MuJoCo's convention -> x = [q; qd] in ours.",
+      1, {array("x", shape(kNx), kMujocoConfiguration)},
+      1, {{"x_pin", shape(kNx)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    rotate_from_mujoco(m, a.in[0], a.in[0] + m.nq, a.out[0] + m.nq);
+    configuration_from_mujoco(m, a.in[0], a.out[0]);
+    return true;
+  }
+};
+
+struct ForceToMujoco {
+  static constexpr OpSpec spec = {
+      "force_to_mujoco", "mujoco_convention", "mujoco_convention",
+      "generalized force u (nv,) in our frames -> MuJoCo's (qfrc) at qpos (nq,, MuJoCo layout).",
+      2, {array("qpos", shape(kNq), kMujocoConfiguration), array("u", shape(kNv))},
+      1, {{"u_mj", shape(kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    rotate_to_mujoco(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct ForceFromMujoco {
+  static constexpr OpSpec spec = {
+      "force_from_mujoco", "mujoco_convention", "mujoco_convention",
+      "generalized force u (nv,) in MuJoCo's frames (qfrc) at qpos -> ours.",
+      2, {array("qpos", shape(kNq), kMujocoConfiguration), array("u", shape(kNv))},
+      1, {{"u_pin", shape(kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    rotate_from_mujoco(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct MujocoIntegrate {
+  static constexpr OpSpec spec = {
+      "mujoco_integrate", "mujoco_convention", "mujoco_convention",
+      "MuJoCo's qpos ⊕ v (mj_integratePos with a unit step): (nq,).",
+      2, {array("qpos", shape(kNq), kMujocoConfiguration), array("v", shape(kNv))},
+      1, {{"qpos_next", shape(kNq)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    mj_integrate(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
+
+struct MujocoDifference {
+  static constexpr OpSpec spec = {
+      "mujoco_difference", "mujoco_convention", "mujoco_convention",
+      "MuJoCo's qpos1 ⊖ qpos0 (mj_differentiatePos with a unit step): (nv,).",
+      2, {array("qpos0", shape(kNq), kMujocoConfiguration), array("qpos1", shape(kNq), kMujocoConfiguration)},
+      1, {{"v", shape(kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    mj_difference(m, a.in[0], a.in[1], a.out[0]);
+    return true;
+  }
+};
 
 // ---------------------------------------------------------------- energy and the Coriolis matrix
 
@@ -506,12 +661,14 @@ template <typename Op, typename First, typename... Rest> constexpr int index_of(
 
 // every registered operation; an operation's id is its index here
 using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crba, Minv, Aba, ForwardDynamics,
-                      InverseDynamicsGradient, ForwardDynamicsGradient, Integrate, Difference, DIntegrate,
+                      InverseDynamicsGradient, ForwardDynamicsGradient, FExtGradient, IdsvaSoBodyFrame,
+                      IdsvaSoWorldFrame, IdsvaSo, FdsvaSo, Integrate, Difference, DIntegrate,
                       DDifference, Integrator, IntegratorGradient, PlantStep, PlantStepGradient, KineticEnergy,
                       PotentialEnergy, MechanicalEnergy, CoriolisMatrix, Com, JacobianCom, Ccrba, CentroidalMomentum,
                       Dccrba, CmmTimeVariation, CentroidalMomentumTimeVariation, CentroidalDynamicsDerivatives,
                       InverseDynamicsRegressor,
-                      KineticEnergyRegressor, PotentialEnergyRegressor>;
+                      KineticEnergyRegressor, PotentialEnergyRegressor, StateToMujoco, StateFromMujoco,
+                      ForceToMujoco, ForceFromMujoco, MujocoIntegrate, MujocoDifference>;
 
 }  // namespace ops
 }  // namespace rbd
