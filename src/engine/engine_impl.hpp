@@ -45,7 +45,7 @@
 #define RBDKIT_ENGINE_W32 (2 * RBDKIT_ENGINE_W64)
 #endif
 
-// the per-pack loop inlines everything it calls (the engine's speed);
+// a pack's kernel inlines everything it calls (the engine's speed);
 // RBDKIT_ENGINE_NO_FLATTEN (the sanitizer build) skips that to compile faster
 #ifdef RBDKIT_ENGINE_NO_FLATTEN
 #define RBD_ENGINE_KERNEL
@@ -147,6 +147,14 @@ template <typename P> P nonfinite_lanes(const P* x, long n) {
   return (a0 + a1) + (a2 + a3);
 }
 
+// one pack through Op's kernel: a function of its own with everything it
+// calls inlined (the engine's speed), called once per pack
+template <typename Op, typename P>
+RBD_ENGINE_KERNEL __attribute__((noinline)) bool run_pack(const ModelView<P>& m, Workspace<P>& w,
+                                                         const ops::OpArgs<P>& a) {
+  return Op::run(m, w, a);
+}
+
 // the registered operation Op (ops/registry.hpp) on B knot points: the
 // arrays in argument order (a parameter's slot is empty), the outputs in order
 template <typename T, typename Op> struct Job {
@@ -182,7 +190,7 @@ template <typename T, typename Op> struct Job {
   }
   // thread t's share, on its own buffer; which thread runs a pack does not
   // change its result (every pack runs the same code from its own inputs)
-  RBD_ENGINE_KERNEL void work(int t) {
+  void work(int t) {
     ThreadBuffer<P>& buf = e->buffers[t];
     // this thread's packed arrays: inputs, outputs, then the scratch
     ops::OpArgs<P> a = params;
@@ -211,7 +219,7 @@ template <typename T, typename Op> struct Job {
             for (long k = 0; k < w; ++k) dst[k].v[l] = src[k];
           }
         }
-        if (!Op::run(e->mv, buf.ws, a)) lower(failed, s0);
+        if (!run_pack<Op>(e->mv, buf.ws, a)) lower(failed, s0);
         for (int o = 0; o < op.n_out; ++o) {
           if (!out[o].p) continue;
           const long w = out[o].w;
