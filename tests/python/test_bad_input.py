@@ -69,6 +69,8 @@ METHODS = {
     "idsva_so_world_frame": ("q", "qd", "qdd"),
     "idsva_so": ("q", "qd", "qdd"),
     "fdsva_so": ("q", "qd", "u"),
+    "plant_step": ("x", "u", "f_ext"),
+    "plant_step_gradient": ("x", "u", "f_ext"),
     "plant_step_hessian": ("x", "u"),
     "state_to_mujoco": ("x",),
     "state_from_mujoco": ("x",),
@@ -81,7 +83,8 @@ KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
         "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols",
         "x": "state", "qpos": "config", "qpos0": "config", "qpos1": "config"}
-OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
+OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_step", "f_ext"),
+            ("plant_step_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
             ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
             ("inverse_dynamics_fpass", "f_ext"), ("inverse_dynamics_gradient_fpass_dq", "qdd"),
             ("inverse_dynamics_gradient_fpass_dqd", "qdd"), ("inverse_dynamics_gradient_bpass_dq", "qdd"),
@@ -96,7 +99,8 @@ WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_grav
                 "inverse_dynamics_regressor", "inverse_dynamics_regressor_gradient",
                 "forward_dynamics_parameter_gradient", "potential_energy_regressor", "potential_energy",
                 "mechanical_energy",
-                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so", "plant_step_hessian")
+                "idsva_so_body_frame", "idsva_so_world_frame", "idsva_so", "fdsva_so", "plant_step",
+                "plant_step_gradient", "plant_step_hessian")
 METHOD_ARGS = [(m, a) for m, args in METHODS.items() for a in args]
 MULTI = [m for m, args in METHODS.items() if len(args) > 1]
 
@@ -134,7 +138,7 @@ def valid_args(model, method):
 def call(rbd, method, args):
     if method == "time_per_call":
         return rbd.time_per_call("crba", iters=1, **args)
-    if method in ("integrator", "integrator_gradient", "plant_step_hessian"):
+    if method in ("integrator", "integrator_gradient", "plant_step", "plant_step_gradient", "plant_step_hessian"):
         return getattr(rbd, method)(dt=0.01, integrator_type="rk4", **args)
     return getattr(rbd, method)(**args)
 
@@ -158,6 +162,13 @@ def bad_shapes(model, name):
     if kind == "state":
         return [(nq,), (nq + nv + 1,), (2, 2, nq + nv), (), (nq + nv, 1)]
     return [(nb, 3), (nb + 1, 6), (nb * 6,), (2, 2, nb, 6), (6, nb)]
+
+
+def test_every_registered_operation_is_listed():
+    # a new registered operation gets every generic case below once it is
+    # listed here with its array arguments, in the registry's order
+    for name, _alg, _family, _doc, args in rbdkit._core.registered_operations():
+        assert METHODS.get(name) == tuple(a for a, kind, _ in args if kind in ("array", "optional")), name
 
 
 def test_valid_arguments_work(rbd, hyq):
