@@ -147,12 +147,31 @@ template <typename P> P nonfinite_lanes(const P* x, long n) {
   return (a0 + a1) + (a2 + a3);
 }
 
+// whether Op takes an output convention (the integrators and the plant step)
+template <typename Op> constexpr bool has_convention() {
+  for (int k = 0; k < Op::spec.n_args; ++k)
+    if (Op::spec.args[k].kind == ops::kConvention) return true;
+  return false;
+}
+
 // one pack through Op's kernel: a function of its own with everything it
-// calls inlined (the engine's speed), called once per pack
-template <typename Op, typename P>
+// calls inlined (the engine's speed), called once per pack. Defaults: the
+// call has no optional array and the Pinocchio convention, and the kernel
+// is compiled with those as constants (the MuJoCo path and the f_ext terms
+// drop out of the common case)
+template <typename Op, bool Defaults, typename P>
 RBD_ENGINE_KERNEL __attribute__((noinline)) bool run_pack(const ModelView<P>& m, Workspace<P>& w,
                                                          const ops::OpArgs<P>& a) {
-  return Op::run(m, w, a);
+  if constexpr (Defaults) {
+    ops::OpArgs<P> d = a;
+    for (int k = 0; k < Op::spec.n_args; ++k) {
+      if (Op::spec.args[k].kind == ops::kOptionalArray) d.in[k] = nullptr;
+      if (Op::spec.args[k].kind == ops::kConvention) d.choice[k] = kPinocchioConvention;
+    }
+    return Op::run(m, w, d);
+  } else {
+    return Op::run(m, w, a);
+  }
 }
 
 // the registered operation Op (ops/registry.hpp) on B knot points: the
@@ -204,6 +223,12 @@ template <typename T, typename Op> struct Job {
       if (out[o].p) v += out[o].w;
     }
     a.scratch = v;
+    // the default parameters' kernel (operations with a convention only)
+    bool defaults = has_convention<Op>();
+    for (int k = 0; k < op.n_args; ++k) {
+      if (op.args[k].kind == ops::kOptionalArray && in[k].p) defaults = false;
+      if (op.args[k].kind == ops::kConvention && params.choice[k] != kPinocchioConvention) defaults = false;
+    }
     long p0, p1;
     while (claim(p0, p1))
       for (long p = p0; p < p1; ++p) {
@@ -219,7 +244,12 @@ template <typename T, typename Op> struct Job {
             for (long k = 0; k < w; ++k) dst[k].v[l] = src[k];
           }
         }
-        if (!run_pack<Op>(e->mv, buf.ws, a)) lower(failed, s0);
+        bool ok;
+        if constexpr (has_convention<Op>())
+          ok = defaults ? run_pack<Op, true>(e->mv, buf.ws, a) : run_pack<Op, false>(e->mv, buf.ws, a);
+        else
+          ok = run_pack<Op, false>(e->mv, buf.ws, a);
+        if (!ok) lower(failed, s0);
         for (int o = 0; o < op.n_out; ++o) {
           if (!out[o].p) continue;
           const long w = out[o].w;
