@@ -91,85 +91,35 @@ void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, c
 void com_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, double* value,
               double* grad, double* H, int convention) {
   check_convention(convention);
-  std::vector<double> qbuf;
-  const double* q_mj = q;
-  q = pinocchio_configurations(m, B, q, convention, qbuf);
+  check_configurations_in(m, B, q, "q", convention);
   check_finite(p_des, B * 3, "p_des");
   check_weights(W, B * 3, "W");
-  const int nv = m.nv, nx = m.nq + m.nv;
-  std::vector<double> c(B * 3), J(B * 3 * nv);
-  center_of_mass(m, B, q, c.data());
-  jacobian_com(m, B, q, J.data());
-  if (convention == kMujocoConvention)
-    for (long s = 0; s < B; ++s) jacobian_cols_to_mujoco(m.view(), q_mj + s * m.nq, J.data() + s * 3 * nv, 3);
-  for (long s = 0; s < B; ++s) {
-    double r[3];
-    for (int k = 0; k < 3; ++k) r[k] = c[s * 3 + k] - p_des[s * 3 + k];
-    value[s] = residual_cost_embedded(3, r, W + s * 3, J.data() + s * 3 * nv, m.nq, nv, grad + s * nx,
-                                      H + s * nx * nx);
-  }
+  const int nx = m.nq + m.nv;
+  WorkspaceBuffer buf(m, kLinearWorkspace);
+  const ModelView<double> mv = m.view();
+  std::vector<double> scratch(com_cost_scratch(m.nq, m.nv));
+  for (long s = 0; s < B; ++s)
+    if (!rbd::com_cost(mv, buf.get(), q + s * m.nq, p_des + s * 3, W + s * 3, convention, value + s, grad + s * nx,
+                       H + s * nx * nx, scratch.data()))
+      throw std::runtime_error("com_cost: the robot has no mass (total mass 0), so its centre of mass is undefined");
 }
 
 void momentum_cost(const Model& m, long B, const double* q, const double* qd, const double* h_des, const double* W,
                    double* value, double* grad, double* H, int convention) {
   check_convention(convention);
-  std::vector<double> qbuf;
-  const double* q_mj = q;
-  q = pinocchio_configurations(m, B, q, convention, qbuf);
+  check_configurations_in(m, B, q, "q", convention);
   check_finite(qd, B * m.nv, "qd");
   check_finite(h_des, B * 6, "h_des");
   check_weights(W, B * 6, "W");
-  const int nv = m.nv, n2 = 2 * nv;
+  const int n2 = 2 * m.nv;
+  WorkspaceBuffer buf(m, kLinearWorkspace);
   const ModelView<double> mv = m.view();
-  std::vector<double> A(6 * nv), h(6), dA(6 * nv * nv), J(6 * n2), vbuf(nv), Jq(6 * nv);
-  for (long s = 0; s < B; ++s) {
-    const double* qs = q + s * m.nq;
-    const double* vs = qd + s * nv;
-    if (convention == kMujocoConvention) {
-      // qd in MuJoCo's frames -> Pinocchio's
-      rotate_from_mujoco(mv, q_mj + s * m.nq, vs, vbuf.data());
-      vs = vbuf.data();
-    }
-    ccrba(m, 1, qs, vs, A.data(), h.data());
-    dccrba(m, 1, qs, dA.data());
-    // J = [(∂A/∂q) qd | A]: column k of the first block is Σ_j dA[r][j][k] qd_j
-    for (int r = 0; r < 6; ++r) {
-      for (int k = 0; k < nv; ++k) {
-        double acc = 0;
-        for (int j = 0; j < nv; ++j) acc += dA[(r * nv + j) * nv + k] * vs[j];
-        J[r * n2 + k] = acc;
-        J[r * n2 + nv + k] = A[r * nv + k];
-      }
-    }
-    if (convention == kMujocoConvention) {
-      // MuJoCo tangent: Jq ← (Jq + A ∂v_pin/∂δq) Cᵀ, Jv ← A Cᵀ
-      for (int r = 0; r < 6; ++r)
-        for (int k = 0; k < nv; ++k) Jq[r * nv + k] = J[r * n2 + k];
-      add_frame_dependence(mv, vs, A.data(), Jq.data(), 6);
-      jacobian_cols_to_mujoco(mv, q_mj + s * m.nq, Jq.data(), 6);
-      jacobian_cols_to_mujoco(mv, q_mj + s * m.nq, A.data(), 6);
-      for (int r = 0; r < 6; ++r)
-        for (int k = 0; k < nv; ++k) J[r * n2 + k] = Jq[r * nv + k], J[r * n2 + nv + k] = A[r * nv + k];
-    }
-    double res[6];
-    for (int r = 0; r < 6; ++r) res[r] = h[r] - h_des[s * 6 + r];
-    const double* w = W + s * 6;
-    double v = 0;
-    for (int r = 0; r < 6; ++r) v += 0.5 * w[r] * res[r] * res[r];
-    value[s] = v;
-    double* g = grad + s * n2;
-    double* Hs = H + s * n2 * n2;
-    for (int c = 0; c < n2; ++c) {
-      double acc = 0;
-      for (int r = 0; r < 6; ++r) acc += J[r * n2 + c] * w[r] * res[r];
-      g[c] = acc;
-      for (int c2 = 0; c2 < n2; ++c2) {
-        double hh = 0;
-        for (int r = 0; r < 6; ++r) hh += J[r * n2 + c] * w[r] * J[r * n2 + c2];
-        Hs[c * n2 + c2] = hh;
-      }
-    }
-  }
+  std::vector<double> scratch(momentum_cost_scratch(m.nq, m.nv));
+  for (long s = 0; s < B; ++s)
+    if (!rbd::momentum_cost(mv, buf.get(), q + s * m.nq, qd + s * m.nv, h_des + s * 6, W + s * 6, convention,
+                            value + s, grad + s * n2, H + s * n2 * n2, scratch.data()))
+      throw std::runtime_error("momentum_cost: the robot has no mass (total mass 0), so its centre of mass is "
+                               "undefined");
 }
 
 void log_barrier(long B, int n, const double* x, const double* lower, const double* upper, double mu,

@@ -143,6 +143,11 @@ long scratch_values(const OpSpec& op, const Model& m) {
     case kScratch2NvNv: return 2L * m.nv * m.nv;
     case kScratchIntegrator: return integrator_scratch_values(m.nq, m.nv);
     case kScratchIntegratorGrad: return integrator_gradient_scratch_values(m.nq, m.nv) + m.nq + m.nv;
+    case kScratchNvNv: return static_cast<long>(m.nv) * m.nv;
+    case kScratchDccrbaFd: return dccrba_fd_scratch(m.nq, m.nv);
+    case kScratchCmmFd: return 6L * m.nv * m.nv + dccrba_fd_scratch(m.nq, m.nv);
+    case kScratchComCost: return com_cost_scratch(m.nq, m.nv);
+    case kScratchMomentumCost: return momentum_cost_scratch(m.nq, m.nv);
   }
   return 0;
 }
@@ -160,6 +165,9 @@ int call_convention(const OpSpec& op, const OpCall& c) {
 }
 
 template <typename T> void check_call(const Model& m, const OpSpec& op, const OpCall& c) {
+  if (op.model == kNoMimic && m.has_mimic())
+    throw std::invalid_argument(std::string(op.name) + ": this operation applies to models without mimic joints; "
+                                "this model has mimic joints");
   // parameters first (cheap), then the arrays in argument order
   for (int k = 0; k < op.n_args; ++k) {
     const ArgSpec& a = op.args[k];
@@ -179,6 +187,14 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
         }
         break;
       case kTimeStep: check_time_step(c.real[k], a.name); break;
+      case kFdStep:
+        if (!(c.real[k] > 0 && c.real[k] <= Bounds<T>::input)) {
+          std::ostringstream os;
+          if (std::isfinite(c.real[k])) os << "expected a positive finite-difference step, got " << c.real[k];
+          else os << "expected a finite number, got " << c.real[k];
+          bad_param(a, os.str());
+        }
+        break;
       case kFlag:
         if (c.choice[k] != 0 && c.choice[k] != 1) bad_param(a, "expected 0 or 1, got " + std::to_string(c.choice[k]));
         break;
@@ -201,10 +217,19 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
     if ((a.kind != kArray && a.kind != kOptionalArray) || !c.in[k]) continue;
     const T* x = static_cast<const T*>(c.in[k]);
     const long n = arg_values(a, m), samples = c.batched[k] ? c.B : 1;
-    if (a.check == kFiniteValues) {
-      if (finite_values(x, n * samples)) continue;
-      for (long s = 0; s < samples; ++s)
-        if (!finite_values(x + s * n, n)) throw_values(x + s * n, n, label_of(a.name, c.batched[k], s));
+    if (a.check == kFiniteValues || a.check == kWeights) {
+      if (!finite_values(x, n * samples))
+        for (long s = 0; s < samples; ++s)
+          if (!finite_values(x + s * n, n)) throw_values(x + s * n, n, label_of(a.name, c.batched[k], s));
+      if (a.check == kWeights)
+        for (long s = 0; s < samples; ++s)
+          for (long j = 0; j < n; ++j)
+            if (x[s * n + j] < 0) {
+              std::ostringstream os;
+              os << label_of(a.name, c.batched[k], s) << ": expected non-negative weights, got " << x[s * n + j]
+                 << " at flat index " << j;
+              throw std::invalid_argument(os.str());
+            }
       continue;
     }
     // a configuration, or a state [q; qd] whose first nq values are one

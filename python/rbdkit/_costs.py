@@ -37,39 +37,10 @@ from ._mujoco import convention_code
 
 
 class CostsMixin:
-    """Costs and barriers; mixed into rbdkit.RBD."""
-
-    def _quadratic(self, x, x_des, W, n, dim, names):
-        b = Batch()
-        ix = b.add(x, names[0], (n,), (dim,))
-        idd = b.add(x_des, names[1], (n,), (dim,))
-        iw = b.add(W, names[2], (n,), (dim,))
-        v, g, H = b.out(), b.out(n), b.out(n, n)
-        _core.quadratic_cost(b.get(ix), b.get(idd), b.get(iw), v, g, H, *names)
-        return b.ret(v), b.ret(g), b.ret(H)
-
-    def quadratic_state_cost(self, x, x_des, Q, output_convention="pinocchio"):
-        """½ Σ Q (x - x_des)² on x = [q; qd] (NX,): (value, grad (NX,), H (NX, NX))."""
-        convention_code(output_convention)
-        return self._quadratic(x, x_des, Q, self.nq + self.nv, "nq+nv", ("x", "x_des", "Q"))
-
-    def quadratic_input_cost(self, u, u_des, R, output_convention="pinocchio"):
-        """½ Σ R (u - u_des)²: (value, grad (nv,), H (nv, nv))."""
-        convention_code(output_convention)
-        return self._quadratic(u, u_des, R, self.nv, "nv", ("u", "u_des", "R"))
-
-    def quadratic_state_cost_tangent(self, x, x_des, Q, output_convention="pinocchio"):
-        """½ eᵀ diag(Q) e with the log-map error e = [difference(q_des, q);
-        qd - qd_des]: (value, grad (2nv,), Gauss–Newton H (2nv, 2nv))."""
-        cv = convention_code(output_convention)
-        nx, n2 = self.nq + self.nv, 2 * self.nv
-        b = Batch()
-        ix = b.add(x, "x", (nx,), ("nq+nv",))
-        idd = b.add(x_des, "x_des", (nx,), ("nq+nv",))
-        iq = b.add(Q, "Q", (n2,), ("2nv",))
-        v, g, H = b.out(), b.out(n2), b.out(n2, n2)
-        _core.quadratic_state_cost_tangent(self._m, b.get(ix), b.get(idd), b.get(iq), v, g, H, cv)
-        return b.ret(v), b.ret(g), b.ret(H)
+    """ee_pos_cost and the barriers; mixed into rbdkit.RBD. The other costs
+    (quadratic_state_cost, quadratic_input_cost, quadratic_state_cost_tangent,
+    com_cost, momentum_cost) are registered operations
+    (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself."""
 
     def ee_pos_cost(self, q, p_des, W, ee_joint_name=None, ee_offset=None, output_convention="pinocchio"):
         """½ Σ W (p_ee(q) - p_des)² for the first end effector (the first
@@ -87,34 +58,6 @@ class CostsMixin:
         iw = b.add(W, "W", (3,), ("3",))
         v, g, H = b.out(), b.out(nx), b.out(nx, nx)
         _core.ee_pos_cost(self._m, b.get(iq), b.get(ip), b.get(iw), bodies[0], off, v, g, H, cv)
-        return b.ret(v), b.ret(g), b.ret(H)
-
-    def com_cost(self, q, p_des, W, output_convention="pinocchio"):
-        """½ Σ W (com(q) - p_des)²: (value, grad (NX,), Gauss–Newton H (NX, NX)),
-        tangent blocks embedded as in ee_pos_cost."""
-        cv = convention_code(output_convention)
-        nx = self.nq + self.nv
-        b = Batch()
-        iq = self._q(b, q)
-        ip = b.add(p_des, "p_des", (3,), ("3",))
-        iw = b.add(W, "W", (3,), ("3",))
-        v, g, H = b.out(), b.out(nx), b.out(nx, nx)
-        _core.com_cost(self._m, b.get(iq), b.get(ip), b.get(iw), v, g, H, cv)
-        return b.ret(v), b.ret(g), b.ret(H)
-
-    def momentum_cost(self, q, qd, h_des, W, output_convention="pinocchio"):
-        """½ Σ W r² with r = A(q)·qd - h_des (6,): (value, grad Jᵀ W r (2nv,),
-        Gauss–Newton H = Jᵀ W J (2nv, 2nv)) in tangent [δq | δqd] coordinates,
-        J = [(∂A/∂q)·qd | A] from dccrba (the full residual Jacobian: the
-        configuration dependence is kept, only the residual curvature is dropped)."""
-        cv = convention_code(output_convention)
-        n2 = 2 * self.nv
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        ih = b.add(h_des, "h_des", (6,), ("6",))
-        iw = b.add(W, "W", (6,), ("6",))
-        v, g, H = b.out(), b.out(n2), b.out(n2, n2)
-        _core.momentum_cost(self._m, b.get(iq), b.get(iv), b.get(ih), b.get(iw), v, g, H, cv)
         return b.ret(v), b.ret(g), b.ret(H)
 
     def _ee_point(self, offset):

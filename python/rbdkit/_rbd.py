@@ -19,20 +19,16 @@ import inspect
 import numpy as np
 
 from . import _core
-from ._centroidal import CentroidalMixin
 from ._checks import Batch, check_choice, check_values
 from ._costs import CostsMixin
-from ._derivatives import DerivativesMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
-from ._regressor import RegressorMixin
 
 GRAVITY = -9.81
 
 
-class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, RegressorMixin,
-          CentroidalMixin):
+class RBD(KinematicsMixin, IntegratorsMixin, CostsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):
@@ -61,18 +57,6 @@ class RBD(DerivativesMixin, KinematicsMixin, IntegratorsMixin, CostsMixin, Regre
         if f_ext is None or (isinstance(f_ext, (list, tuple)) and len(f_ext) == 0):
             return None
         return b.add(f_ext, name, (self.nb, 6), ("nb", "6"))
-
-    # ---- dynamics
-    def apply_external_forces(self, f_in, f_ext):
-        """f_in - f_ext per body, both (nb, 6) in body frames: the net body
-        forces once the external forces are taken away."""
-        b = Batch()
-        i1 = b.add(f_in, "f_in", (self.nb, 6), ("nb", "6"))
-        i2 = b.add(f_ext, "f_ext", (self.nb, 6), ("nb", "6"))
-        f1, f2 = b.get(i1), b.get(i2)
-        for name, f in (("f_in", f1), ("f_ext", f2)):
-            check_values(f, name)
-        return b.ret(f1 - f2)
 
     # ---- configuration space (Lie-group operations)
     def d2Integrate(self, q, v, arg1="v", arg2="v"):
@@ -120,9 +104,14 @@ def _registered_method(name, doc, args):
         return self._compiled[name](*a, **k)
 
     P = inspect.Parameter
+    # an optional array before a required one (the per-pass helpers' qdd) is
+    # shown without its default: a signature cannot have one there, and the
+    # call still takes None for it
+    required = [kind in _NO_DEFAULT for _, kind, _ in args]
+    last_required = max((k for k, r in enumerate(required) if r), default=-1)
     params = [P("self", P.POSITIONAL_OR_KEYWORD)]
-    params += [P(arg, P.POSITIONAL_OR_KEYWORD, default=P.empty if kind in _NO_DEFAULT else default)
-               for arg, kind, default in args]
+    params += [P(arg, P.POSITIONAL_OR_KEYWORD, default=P.empty if required[k] or k < last_required else default)
+               for k, (arg, kind, default) in enumerate(args)]
     method.__name__ = name
     method.__qualname__ = f"RBD.{name}"
     method.__doc__ = doc.split("\n\n", 1)[-1]

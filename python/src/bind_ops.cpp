@@ -60,6 +60,7 @@ std::string dim_name(int d) {
     case ops::kNx: return "nq+nv";
     case ops::k2Nv: return "2nv";
     case ops::k3Nv: return "3nv";
+    case ops::k10Nb: return "10nb";
     default: return std::to_string(d);
   }
 }
@@ -195,6 +196,7 @@ bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, doub
         return false;
       }
       return true;
+    case ops::kFdStep: return as_real(o, a.name, c.real[k]);  // positive: ops::check_call
     case ops::kTimeStep:
       if (!as_real(o, a.name, c.real[k])) return false;
       if (!(c.real[k] > 0 && c.real[k] <= rbd::kMaxTimeStep)) {
@@ -236,7 +238,7 @@ bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, doub
 
 // the default of a parameter into the call
 void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c) {
-  if (a.kind == ops::kReal || a.kind == ops::kTimeStep) c.real[k] = a.value;
+  if (a.kind == ops::kReal || a.kind == ops::kTimeStep || a.kind == ops::kFdStep) c.real[k] = a.value;
   else c.choice[k] = static_cast<int>(a.value);
 }
 
@@ -432,7 +434,7 @@ std::string signature_doc(const ops::OpSpec& op) {
     const ops::ArgSpec& a = op.args[k];
     s += (k ? ", " : "") + std::string(a.name);
     if (a.kind == ops::kOptionalArray) s += "=None";
-    else if (a.kind == ops::kReal && !std::isnan(a.value)) s += std::string("=") + nb::str(nb::float_(a.value)).c_str();
+    else if ((a.kind == ops::kReal || a.kind == ops::kFdStep) && !std::isnan(a.value)) s += std::string("=") + nb::str(nb::float_(a.value)).c_str();
     else if (a.kind == ops::kFlag) s += a.value != 0 ? "=True" : "=False";
     else if (a.kind == ops::kChoice) s += std::string("='") + a.choices[static_cast<int>(a.value)] + "'";
     else if (a.kind == ops::kIntegrator) s += "='euler'";
@@ -490,10 +492,10 @@ void bind_ops(nb::module_& m) {
   if (!op_type()) throw nb::python_error();
 
   // [(name, algorithm, family, doc, [(argument, kind, default)])] in registry
-  // order; kind: array, optional, real, dt, flag, choice, integrator,
+  // order; kind: array, optional, real, dt, flag, choice, integrator, step,
   // convention; default: None where there is none
   m.def("registered_operations", [] {
-    static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention"};
+    static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention", "step"};
     nb::list out;
     for (const ops::OpEntry& e : ops::op_table()) {
       const ops::OpSpec& op = *e.spec;
@@ -501,7 +503,7 @@ void bind_ops(nb::module_& m) {
       for (int k = 0; k < op.n_args; ++k) {
         const ops::ArgSpec& a = op.args[k];
         nb::object def = nb::none();
-        if (a.kind == ops::kReal) def = nb::float_(a.value);
+        if (a.kind == ops::kReal || a.kind == ops::kFdStep) def = nb::float_(a.value);
         else if (a.kind == ops::kFlag) def = nb::bool_(a.value != 0);
         else if (a.kind == ops::kChoice) def = nb::str(a.choices[static_cast<int>(a.value)]);
         else if (a.kind == ops::kIntegrator) def = nb::str("euler");

@@ -20,7 +20,6 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
-void bind_derivatives(nb::module_& m);  // bind_derivatives.cpp
 void bind_integrators(nb::module_& m);  // bind_integrators.cpp
 void bind_costs(nb::module_& m);        // bind_costs.cpp
 using rbd::Model;
@@ -31,8 +30,6 @@ using rbd_py::opt;
 using rbd_py::width;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
-void bind_regressor(nb::module_& m);  // bind_regressor.cpp
-void bind_centroidal(nb::module_& m);  // bind_centroidal.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
 void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
@@ -80,7 +77,6 @@ NB_MODULE(_core, m) {
   m.attr("MAX_INPUT") = rbd::kMaxInput;
   m.attr("MAX_ANGLE") = rbd::kMaxAngle;
   m.attr("MAX_TIME_STEP") = rbd::kMaxTimeStep;
-  bind_derivatives(m);
   bind_integrators(m);
   bind_costs(m);
 
@@ -169,8 +165,6 @@ NB_MODULE(_core, m) {
         "model"_a, "op"_a, "q"_a, "qd"_a, "tau"_a, "iters"_a);
 
   bind_kinematics(m);
-  bind_regressor(m);
-  bind_centroidal(m);
   bind_handle(m);
   bind_mujoco(m);
   bind_solver(m);

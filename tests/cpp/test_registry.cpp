@@ -5,6 +5,7 @@
 // float32 (within the family's bound), with broadcast inputs and f_ext.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <random>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "rbdkit/centroidal_api.hpp"
+#include "rbdkit/costs_api.hpp"
 #include "rbdkit/derivatives_api.hpp"
 #include "rbdkit/dynamics.hpp"
 #include "rbdkit/handle.hpp"
@@ -56,6 +58,8 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
       for (long s = 0; s < B; ++s) {
         double* xs = x.data() + s * n;
         for (long j = 0; j < n; ++j) xs[j] = (a.shape.d[0] == ops::kNb ? 0.3 : 1.0) * U(rng);
+        if (a.check == ops::kWeights)
+          for (long j = 0; j < n; ++j) xs[j] = std::fabs(xs[j]);
         if (a.check == ops::kConfiguration || a.check == ops::kMujocoConfiguration) {
           // a configuration (the state's first nq values), in MuJoCo's layout where asked
           for (double& d : dv) d = U(rng);
@@ -67,7 +71,7 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
       in.call.batched[k] = true;
     } else if (a.kind == ops::kTimeStep) {
       in.call.real[k] = 0.01;
-    } else if (a.kind == ops::kReal) {
+    } else if (a.kind == ops::kReal || a.kind == ops::kFdStep) {
       in.call.real[k] = a.value;
     } else {
       in.call.choice[k] = static_cast<int>(a.value);
@@ -122,7 +126,10 @@ std::vector<double> sample_of(const std::vector<double>& all, long w, long s) {
 // cond(M)·ε_float32, FDSVA-SO (M⁻¹ applied to terms that carry it already)
 // cond(M)²·ε_float32 (docs/engine.md)
 double float32_bound(const ops::OpSpec& op) {
-  const std::string f = op.family;
+  const std::string f = op.family, n = op.name;
+  // central differences with eps = 1e-5 in float32: about two digits are left
+  if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 1e-1;
+  if (n == "forward_dynamics_parameter_gradient") return 2e-3;  // M⁻¹ applied, as minv's family
   if (f == "fdsva_so") return 5e-2;
   return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
 }
@@ -156,16 +163,31 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "centroidal_momentum_time_variation", "centroidal_dynamics_derivatives", "inverse_dynamics_regressor",
         "kinetic_energy_regressor", "potential_energy_regressor", "f_ext_gradient", "idsva_so_body_frame",
         "idsva_so_world_frame", "idsva_so", "fdsva_so", "state_to_mujoco", "state_from_mujoco", "force_to_mujoco",
-        "force_from_mujoco", "mujoco_integrate", "mujoco_difference"}) {
+        "force_from_mujoco", "mujoco_integrate", "mujoco_difference", "inverse_dynamics_fpass",
+        "inverse_dynamics_bpass", "minv_bpass", "minv_fpass", "inverse_dynamics_gradient_fpass_dq",
+        "inverse_dynamics_gradient_fpass_dqd", "inverse_dynamics_gradient_bpass_dq",
+        "inverse_dynamics_gradient_bpass_dqd", "dccrba_fd", "cmm_time_variation_fd",
+        "inverse_dynamics_regressor_gradient", "forward_dynamics_parameter_gradient", "quadratic_state_cost_tangent",
+        "com_cost", "momentum_cost"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
+    if (op.model == ops::kNoMimic && m.has_mimic()) continue;  // RequirementsAreChecked
     const Inputs in = make_inputs(m, op, B, 3, true);
     const std::vector<double> got = run<double>(h, id, in, op.returns);  // what RBD returns
     const long w = static_cast<long>(got.size()) / B, nv = m.nv;
     std::vector<double> ref(B * w), tau(B * nv), v(B * m.nb() * 6), a(B * m.nb() * 6), f(B * m.nb() * 6);
     auto in_of = [&](int k) { return in.arrays[k].empty() ? nullptr : in.arrays[k].data(); };
     const std::string n = name;
+    // outputs written one array after the other (B samples each) into ref's per-sample layout
+    auto interleave = [&](std::initializer_list<std::vector<double>*> parts) {
+      long o = 0;
+      for (std::vector<double>* p : parts) {
+        const long blk = static_cast<long>(p->size()) / B;
+        for (long s = 0; s < B; ++s) std::copy_n(p->data() + s * blk, blk, ref.data() + s * w + o);
+        o += blk;
+      }
+    };
     if (n == "inverse_dynamics") {
       rbd::batch::inverse_dynamics(m, B, in_of(0), in_of(1), in_of(2), in_of(4), -9.81, tau.data(), v.data(), a.data(),
                                    f.data());
@@ -213,6 +235,43 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       rbd::batch::centroidal_momentum(m, B, in_of(0), in_of(1), ref.data());
     } else if (n == "dccrba") {
       rbd::batch::dccrba(m, B, in_of(0), ref.data());
+    } else if (n == "dccrba_fd") {
+      rbd::batch::dccrba_fd(m, B, in_of(0), 1e-5, ref.data());
+    } else if (n == "cmm_time_variation_fd") {
+      rbd::batch::cmm_time_variation_fd(m, B, in_of(0), in_of(1), 1e-5, ref.data());
+    } else if (n == "inverse_dynamics_fpass") {
+      rbd::batch::inverse_dynamics_fpass(m, B, in_of(0), in_of(1), in_of(2), in_of(4), -9.81, v.data(), a.data(),
+                                         f.data());
+      interleave({&v, &a, &f});
+    } else if (n == "inverse_dynamics_bpass") {
+      rbd::batch::inverse_dynamics_bpass(m, B, in_of(0), in_of(1), tau.data(), f.data());
+      interleave({&tau, &f});
+    } else if (n == "minv_bpass") {
+      rbd::batch::minv_bpass(m, B, in_of(0), ref.data());
+    } else if (n == "minv_fpass") {
+      rbd::batch::minv_fpass(m, B, in_of(0), in_of(1), ref.data());
+    } else if (n.rfind("inverse_dynamics_gradient_fpass", 0) == 0) {
+      std::vector<double> c1(B * m.nb() * 36), c2(B * m.nb() * 36);
+      rbd::batch::inverse_dynamics_gradient_fpass(m, B, in_of(0), in_of(1), in_of(2), -9.81, n.back() == 'q' ? 0 : 1,
+                                                  c1.data(), c2.data());
+      interleave({&c1, &c2});
+    } else if (n.rfind("inverse_dynamics_gradient_bpass", 0) == 0) {
+      rbd::batch::inverse_dynamics_gradient_bpass(m, B, in_of(0), in_of(1), in_of(2), -9.81, n.back() == 'q' ? 0 : 1,
+                                                  in_of(3), in_of(4), ref.data());
+    } else if (n == "inverse_dynamics_regressor_gradient") {
+      rbd::batch::inverse_dynamics_regressor_gradient(m, B, in_of(0), in_of(1), in_of(2), -9.81, ref.data());
+    } else if (n == "forward_dynamics_parameter_gradient") {
+      rbd::batch::forward_dynamics_parameter_gradient(m, B, in_of(0), in_of(1), in_of(2), -9.81, ref.data());
+    } else if (n == "quadratic_state_cost_tangent" || n == "com_cost" || n == "momentum_cost") {
+      const long nx = static_cast<long>(std::sqrt(double(w - 1)));  // w = 1 + n + n²
+      std::vector<double> val(B), g(B * nx), H(B * nx * nx);
+      if (n == "com_cost")
+        rbd::batch::com_cost(m, B, in_of(0), in_of(1), in_of(2), val.data(), g.data(), H.data());
+      else if (n == "momentum_cost")
+        rbd::batch::momentum_cost(m, B, in_of(0), in_of(1), in_of(2), in_of(3), val.data(), g.data(), H.data());
+      else
+        rbd::batch::quadratic_state_cost_tangent(m, B, in_of(0), in_of(1), in_of(2), val.data(), g.data(), H.data());
+      interleave({&val, &g, &H});
     } else if (n == "cmm_time_variation") {
       rbd::batch::cmm_time_variation(m, B, in_of(0), in_of(1), ref.data());
     } else if (n == "centroidal_momentum_time_variation") {
@@ -278,6 +337,7 @@ TEST_P(RegistryModels, EngineEqualsSerialLoop) {
   for (const ops::OpEntry& e : ops::op_table()) {
     const ops::OpSpec& op = *e.spec;
     SCOPED_TRACE(op.name);
+    if (op.model == ops::kNoMimic && m.has_mimic()) continue;  // RequirementsAreChecked
     const Inputs in = make_inputs(m, op, B, 5, true);
     const long w = sample_width(m, op);
     const std::vector<double> ref = run<double>(serial, e.id, in);
@@ -392,5 +452,56 @@ TEST(Registry, MasslessRobotHasNoCentreOfMass) {
     }
     ++checked;
   }
-  EXPECT_EQ(checked, 8);  // com, jacobian_com, ccrba, centroidal_momentum, dccrba, cmm_time_variation, ḣ, its derivatives
+  // com, jacobian_com, ccrba, centroidal_momentum, dccrba, cmm_time_variation, ḣ, its derivatives, the two
+  // finite-difference checks, com_cost, momentum_cost
+  EXPECT_EQ(checked, 12);
+}
+
+// what an operation needs of the model, and its finite-difference steps, are
+// checked with messages naming them, on the serial loop and the engine
+TEST(Registry, RequirementsAreChecked) {
+  const Model mimic = Model::from_urdf_file(std::string(RBDKIT_TEST_URDF_DIR) + "/mimic.urdf", false);
+  const Model hyq = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true);
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  int checked = 0;
+  for (const ops::OpEntry& e : ops::op_table()) {
+    const ops::OpSpec& op = *e.spec;
+    if (op.model != ops::kNoMimic) continue;
+    for (int threads : {0, 2}) {
+      rbd::Handle h(mimic, {}, threads);
+      const Inputs in = make_inputs(mimic, op, 3, 1, false);
+      EXPECT_EQ(message([&] { run<double>(h, e.id, in); }),
+                std::string(op.name) + ": this operation applies to models without mimic joints; this model has "
+                                       "mimic joints");
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 2);  // minv_bpass, minv_fpass
+  for (const char* name : {"dccrba_fd", "cmm_time_variation_fd"}) {
+    const int id = ops::find_op(name);
+    const ops::OpSpec& op = *ops::op_table()[id].spec;
+    int k = 0;
+    while (op.args[k].kind != ops::kFdStep) ++k;
+    for (const char* dtype : {"float64", "float32"}) {
+      rbd::Handle h(hyq, {}, 2, dtype);
+      Inputs in = make_inputs(hyq, op, 2, 1, false);
+      for (double eps : {0.0, -1e-3, std::nan("")}) {
+        in.call.real[k] = eps;
+        const std::string msg = message([&] {
+          if (std::string(dtype) == "float64") run<double>(h, id, in);
+          else run<float>(h, id, in);
+        });
+        const char* want = std::isnan(eps) ? "eps: expected a finite number, got nan"
+                                           : "eps: expected a positive finite-difference step, got";
+        EXPECT_EQ(msg.rfind(want, 0), 0u) << msg;
+      }
+    }
+  }
 }

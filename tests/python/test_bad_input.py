@@ -78,11 +78,24 @@ METHODS = {
     "force_from_mujoco": ("qpos", "u"),
     "mujoco_integrate": ("qpos", "v"),
     "mujoco_difference": ("qpos0", "qpos1"),
+    "quadratic_state_cost": ("x", "x_des", "Q"),
+    "quadratic_input_cost": ("u", "u_des", "R"),
+    "quadratic_state_cost_tangent": ("x", "x_des", "Q"),
+    "com_cost": ("q", "p_des", "W"),
+    "momentum_cost": ("q", "qd", "h_des", "W"),
 }
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
         "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols",
-        "x": "state", "qpos": "config", "qpos0": "config", "qpos1": "config"}
+        "x": "state", "qpos": "config", "qpos0": "config", "qpos1": "config", "x_des": "state", "u_des": "tangent",
+        "R": "weights", "p_des": "point", "h_des": "wrench"}
+# names whose kind depends on the method
+KIND_OF = {("quadratic_state_cost", "Q"): "state_weights", ("quadratic_state_cost_tangent", "Q"): "tangent_weights",
+           ("com_cost", "W"): "point_weights", ("momentum_cost", "W"): "wrench_weights"}
+
+
+def kind_of(method, name):
+    return KIND_OF.get((method, name)) or KIND[name]
 OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_step", "f_ext"),
             ("plant_step_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
             ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
@@ -115,9 +128,13 @@ def rbd(hyq):
     return rbdkit.RBD(hyq)
 
 
-def valid_value(model, name, seed=0):
+def valid_value(model, method, name, seed=0):
     rng = np.random.default_rng(seed)
-    kind = KIND[name]
+    kind = kind_of(method, name)
+    if kind.endswith("weights"):
+        return rng.uniform(0, 1, width(model, method, name))
+    if kind in ("point", "wrench"):
+        return rng.uniform(-1, 1, width(model, method, name))
     if kind == "config":
         return model.random_configuration(rng)
     if kind == "tangent":
@@ -132,7 +149,7 @@ def valid_value(model, name, seed=0):
 
 
 def valid_args(model, method):
-    return {a: valid_value(model, a, seed=k) for k, a in enumerate(METHODS[method])}
+    return {a: valid_value(model, method, a, seed=k) for k, a in enumerate(METHODS[method])}
 
 
 def call(rbd, method, args):
@@ -143,14 +160,25 @@ def call(rbd, method, args):
     return getattr(rbd, method)(**args)
 
 
-def width(model, name):
+def width(model, method, name):
     return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6), "matrix": (model.nv, model.nv),
-            "cols": (model.nb, 6, 6), "state": (model.nq + model.nv,)}[KIND[name]]
+            "cols": (model.nb, 6, 6), "state": (model.nq + model.nv,), "weights": (model.nv,),
+            "state_weights": (model.nq + model.nv,), "tangent_weights": (2 * model.nv,), "point": (3,),
+            "point_weights": (3,), "wrench": (6,), "wrench_weights": (6,)}[kind_of(method, name)]
 
 
-def bad_shapes(model, name):
+def bad_shapes(model, method, name):
     nq, nv, nb = model.nq, model.nv, model.nb
-    kind = KIND[name]
+    kind = kind_of(method, name)
+    if kind in ("point", "point_weights", "wrench", "wrench_weights"):
+        n = width(model, method, name)[0]
+        return [(n + 1,), (n, 1), (2, 2, n), ()]
+    if kind == "tangent_weights":
+        return [(nv,), (2 * nv + 1,), (2, 2, 2 * nv), ()]
+    if kind == "state_weights":
+        return [(nq,), (nq + nv + 1,), (2, 2, nq + nv), ()]
+    if kind == "weights":
+        kind = "tangent"
     if kind == "config":
         return [(nv,), (nq + 1,), (2, 2, nq), (), (nq, 1), (1, 1, nq)]
     if kind == "tangent":
@@ -184,8 +212,10 @@ def test_valid_arguments_work(rbd, hyq):
 @pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
 def test_wrong_shape(rbd, hyq, method, arg):
     dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}", "matrix": f"nv={hyq.nv}",
-           "cols": f"nb={hyq.nb}", "state": rf"nq\+nv={hyq.nq + hyq.nv}"}[KIND[arg]]
-    for shape in bad_shapes(hyq, arg):
+           "cols": f"nb={hyq.nb}", "state": rf"nq\+nv={hyq.nq + hyq.nv}", "weights": f"nv={hyq.nv}",
+           "state_weights": rf"nq\+nv={hyq.nq + hyq.nv}", "tangent_weights": f"2nv={2 * hyq.nv}", "point": "3=3",
+           "point_weights": "3=3", "wrench": "6=6", "wrench_weights": "6=6"}[kind_of(method, arg)]
+    for shape in bad_shapes(hyq, method, arg):
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)
         with pytest.raises(ValueError, match=rf"^{arg}: expected shape .*{dim}.*got shape {re.escape(str(shape))}$"):
@@ -211,7 +241,7 @@ def test_mismatched_batch_sizes(rbd, hyq, method):
 @pytest.mark.parametrize("method,arg", METHOD_ARGS, ids=[f"{m}-{a}" for m, a in METHOD_ARGS])
 def test_empty_batch(rbd, hyq, method, arg):
     args = valid_args(hyq, method)
-    args[arg] = np.zeros((0,) + width(hyq, arg))
+    args[arg] = np.zeros((0,) + width(hyq, method, arg))
     with pytest.raises(ValueError, match=rf"^{arg}: the batch is empty"):
         call(rbd, method, args)
 
@@ -234,7 +264,7 @@ def test_time_per_call_unknown_operation(rbd, hyq):
 
 
 def bad_dtype_values(model, method, arg):
-    shape = width(model, arg)
+    shape = width(model, method, arg)
     vals = [
         "abc",
         np.full(shape, "x"),                           # strings of the right shape
@@ -302,7 +332,7 @@ def test_bad_gravity(rbd, hyq, method):
             call(rbd, method, {**valid_args(hyq, method), "gravity": bad})
 
 
-CONFIG_CASES = [(m, a) for m, a in METHOD_ARGS if KIND[a] == "config"]
+CONFIG_CASES = [(m, a) for m, a in METHOD_ARGS if kind_of(m, a) == "config"]
 
 
 def set_quat(q, start, quat):

@@ -262,7 +262,9 @@ def test_float32_results(hyq, op):
             np.testing.assert_array_equal(a, np.asarray(b).astype(np.float32))
         else:  # the engine's float32 maths
             scale = max(1.0, float(np.max(np.abs(b))))
-            assert np.max(np.abs(a - b)) <= 1e-4 * scale, op
+            # central differences with eps = 1e-5 keep about two float32 digits (docs/engine.md)
+            tol = 1e-1 if op.endswith("_fd") else 1e-4
+            assert np.max(np.abs(a - b)) <= tol * scale, op
 
 
 # ------------------------------------------------------------ bad input
@@ -334,7 +336,7 @@ def test_bad_arrays_as_rbd(hyq, threads, method, arg):
     # whether the handle's engine runs the call or RBD's serial loop does
     h, rbd = rbdkit.Handle(hyq, threads=threads), rbdkit.RBD(hyq)
     cases = []
-    for shape in bad_shapes(hyq, arg)[:3]:
+    for shape in bad_shapes(hyq, method, arg)[:3]:
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)
         cases.append(args)
@@ -451,7 +453,8 @@ def test_registered_operations_run_in_cpp(hyq, op, dtype):
         for a, b in zip(flat, flat_ref):
             assert a.dtype == np.dtype(dtype) and a.shape == b.shape
             scale = max(1.0, float(np.max(np.abs(b))))
-            assert np.max(np.abs(a - b)) <= (1e-10 if dtype == "float64" else 1e-4) * scale, op
+            tol = 1e-10 if dtype == "float64" else 1e-1 if op.endswith("_fd") else 1e-4  # see test_float32_results
+            assert np.max(np.abs(a - b)) <= tol * scale, op
 
 
 def test_f_ext_and_options_run_in_cpp(hyq):
@@ -466,7 +469,7 @@ def test_f_ext_and_options_run_in_cpp(hyq):
                 rbd.integrator(v["q"], v["qd"], v["u"], 0.01, "rk4", f_ext=v["f_ext"]), rtol=1e-10)
     assert_same(h.minv(v["q"], output_dense=False), rbd.minv(v["q"], output_dense=False), rtol=1e-10)
     assert_same(h.aba(v["q"], v["qd"], v["tau"], f_ext=[]), rbd.aba(v["q"], v["qd"], v["tau"]), rtol=1e-10)
-    assert "dccrba_fd" not in h.fast_operations()  # not a registered operation
+    assert "ee_pos_cost" not in h.fast_operations()  # not a registered operation
     # a handle with the MuJoCo convention on a floating base keeps the registered ops on RBD's path,
     # but for the conversions between the conventions (the same in either)
     hm = rbdkit.Handle(hyq, output_convention="mujoco")

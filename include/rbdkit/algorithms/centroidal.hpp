@@ -24,6 +24,7 @@
 // q ← integrate(q, δ e_k)); mimic bodies add into their target's column.
 #pragma once
 
+#include "../configuration.hpp"
 #include "crba.hpp"
 #include "energy.hpp"
 #include "rnea.hpp"
@@ -378,6 +379,55 @@ RBD_HD bool centroidal_dynamics_derivatives(const ModelView<S>& m, Workspace<S>&
   shift_forces(nv, c, dhdot_da);
   if (h) store(hg, h);
   if (hdot) store(fg, hdot);
+  return true;
+}
+
+// ------------------------------------------------ finite-difference cross-checks
+// Central differences of A along the tangent steps q ⊕ ±eps·e_k: the checks of
+// dccrba and cmm_time_variation, not for production (in float32 a step of
+// 1e-5 leaves about two of the seven digits).
+
+// scratch values of dccrba_fd: delta (nv), q± (2 nq), A± (12 nv)
+RBD_HD constexpr long dccrba_fd_scratch(int nq, int nv) { return 13L * nv + 2L * nq; }
+
+// dA (6 x nv x nv) as dccrba's, from 2 nv calls of ccrba; false if M <= 0
+template <typename S>
+RBD_HD bool dccrba_fd(const ModelView<S>& m, Workspace<S>& w, const S* q, S eps, S* dA, S* scratch) {
+  const int nq = m.nq, nv = m.nv;
+  S* delta = scratch;
+  S* qp = delta + nv;
+  S* qm = qp + nq;
+  S* Ap = qm + nq;
+  S* Am = Ap + 6 * nv;
+  for (int k = 0; k < nv; ++k) delta[k] = S(0);
+  const S* none = nullptr;
+  for (int k = 0; k < nv; ++k) {
+    // A(q ⊕ ±eps e_k), the central difference into dA[:, :, k]
+    delta[k] = eps;
+    integrate(m, q, delta, qp);
+    delta[k] = -eps;
+    integrate(m, q, delta, qm);
+    delta[k] = S(0);
+    if (!ccrba(m, w, qp, none, Ap, static_cast<S*>(nullptr)) || !ccrba(m, w, qm, none, Am, static_cast<S*>(nullptr)))
+      return false;
+    for (int r = 0; r < 6; ++r)
+      for (int j = 0; j < nv; ++j) dA[(r * nv + j) * nv + k] = (Ap[r * nv + j] - Am[r * nv + j]) / (S(2) * eps);
+  }
+  return true;
+}
+
+// Ȧ (6 x nv) = Σ_k dccrba_fd(q, eps)[:, :, k] qd_k; scratch: 6 nv² + dccrba_fd_scratch values
+template <typename S>
+RBD_HD bool cmm_time_variation_fd(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, S eps, S* Adot,
+                                  S* scratch) {
+  const int nv = m.nv;
+  S* dA = scratch;
+  if (!dccrba_fd(m, w, q, eps, dA, scratch + 6 * nv * nv)) return false;
+  for (int rj = 0; rj < 6 * nv; ++rj) {
+    S acc = S(0);
+    for (int k = 0; k < nv; ++k) acc += dA[rj * nv + k] * qd[k];
+    Adot[rj] = acc;
+  }
   return true;
 }
 

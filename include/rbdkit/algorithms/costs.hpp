@@ -17,8 +17,9 @@
 // map is MuJoCo's ⊖ and the tangent blocks are along MuJoCo's ⊕.
 #pragma once
 
-#include "mujoco_convention.hpp"
 #include "../configuration.hpp"
+#include "centroidal.hpp"
+#include "mujoco_convention.hpp"
 
 namespace rbd {
 
@@ -95,6 +96,96 @@ RBD_HD S residual_cost_embedded(int m, const S* r, const S* W, const S* Jr, int 
     }
   }
   return value;
+}
+
+// --------------------------------------------------------- centroidal tracking costs
+// q (and qd) in the convention's layout and frames; the tangent blocks along its ⊕.
+
+// scratch values of com_cost: q in Pinocchio's layout (nq), J_com (3 x nv)
+RBD_HD constexpr long com_cost_scratch(int nq, int nv) { return nq + 3L * nv; }
+
+// ½ Σ W (com(q) - p_des)² (W, p_des (3)): value, grad (NX), Gauss–Newton H (NX x NX)
+// embedded as residual_cost_embedded's. false if the robot has no mass
+template <typename S>
+RBD_HD bool com_cost(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* p_des, const S* W, int convention,
+                     S* value, S* grad, S* H, S* scratch) {
+  const S* qp = q;
+  S* J = scratch + m.nq;
+  if (convention == kMujocoConvention) {
+    configuration_from_mujoco(m, q, scratch);
+    qp = scratch;
+  }
+  S c[3];
+  if (!center_of_mass(m, w, qp, c) || !jacobian_com(m, w, qp, J)) return false;
+  if (convention == kMujocoConvention) jacobian_cols_to_mujoco(m, q, J, 3);
+  S r[3];
+  for (int k = 0; k < 3; ++k) r[k] = c[k] - p_des[k];
+  *value = residual_cost_embedded(3, r, W, J, m.nq, m.nv, grad, H);
+  return true;
+}
+
+// scratch values of momentum_cost: q, qd in Pinocchio's layout and frames,
+// A, h, dA, J = [Jq | Jv] (6 x 2nv), Jq
+RBD_HD constexpr long momentum_cost_scratch(int nq, int nv) { return nq + 6 + 25L * nv + 6L * nv * nv; }
+
+// ½ Σ W r² with r = A(q)·qd - h_des (W, h_des (6)): value, grad Jᵀ W r (2nv),
+// Gauss–Newton H = Jᵀ W J (2nv x 2nv), J = [(∂A/∂q)·qd | A] in the tangent
+// [δq | δqd]. MuJoCo convention: qd is rotated to Pinocchio's frames inside r,
+// and J keeps that rotation's configuration dependence. false without mass
+template <typename S>
+RBD_HD bool momentum_cost(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* h_des, const S* W,
+                          int convention, S* value, S* grad, S* H, S* scratch) {
+  const int nv = m.nv, n2 = 2 * nv;
+  S* qp = scratch;
+  S* vp = qp + m.nq;
+  S* A = vp + nv;
+  S* h = A + 6 * nv;
+  S* dA = h + 6;
+  S* J = dA + 6 * nv * nv;
+  S* Jq = J + 6 * n2;
+  const S* qs = q;
+  const S* vs = qd;
+  if (convention == kMujocoConvention) {
+    configuration_from_mujoco(m, q, qp);
+    rotate_from_mujoco(m, q, qd, vp);  // qd in MuJoCo's frames -> Pinocchio's
+    qs = qp;
+    vs = vp;
+  }
+  if (!ccrba(m, w, qs, vs, A, h) || !dccrba(m, w, qs, Jq, dA)) return false;  // Jq: dccrba's copy of A
+  // J = [(∂A/∂q) qd | A]: column k of the first block is Σ_j dA[r][j][k] qd_j
+  for (int r = 0; r < 6; ++r)
+    for (int k = 0; k < nv; ++k) {
+      S acc = S(0);
+      for (int j = 0; j < nv; ++j) acc += dA[(r * nv + j) * nv + k] * vs[j];
+      J[r * n2 + k] = acc;
+      J[r * n2 + nv + k] = A[r * nv + k];
+    }
+  if (convention == kMujocoConvention) {
+    // MuJoCo tangent: Jq ← (Jq + A ∂v_pin/∂δq) Cᵀ, Jv ← A Cᵀ
+    for (int r = 0; r < 6; ++r)
+      for (int k = 0; k < nv; ++k) Jq[r * nv + k] = J[r * n2 + k];
+    add_frame_dependence(m, vs, A, Jq, 6);
+    jacobian_cols_to_mujoco(m, q, Jq, 6);
+    jacobian_cols_to_mujoco(m, q, A, 6);
+    for (int r = 0; r < 6; ++r)
+      for (int k = 0; k < nv; ++k) J[r * n2 + k] = Jq[r * nv + k], J[r * n2 + nv + k] = A[r * nv + k];
+  }
+  S res[6];
+  for (int r = 0; r < 6; ++r) res[r] = h[r] - h_des[r];
+  S v = S(0);
+  for (int r = 0; r < 6; ++r) v += S(0.5) * W[r] * res[r] * res[r];
+  *value = v;
+  for (int c = 0; c < n2; ++c) {
+    S acc = S(0);
+    for (int r = 0; r < 6; ++r) acc += J[r * n2 + c] * W[r] * res[r];
+    grad[c] = acc;
+    for (int c2 = 0; c2 < n2; ++c2) {
+      S hh = S(0);
+      for (int r = 0; r < 6; ++r) hh += J[r * n2 + c] * W[r] * J[r * n2 + c2];
+      H[c * n2 + c2] = hh;
+    }
+  }
+  return true;
 }
 
 // -mu Σ [log(x - lo) + log(hi - x)], skipping infinite bounds. grad (n), Hdiag (n).

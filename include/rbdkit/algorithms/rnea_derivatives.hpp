@@ -141,4 +141,25 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
   rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
 }
 
+// per-body DoF columns (6 per body, as w.Sw) <-> an (nb x 6 x 6) array whose
+// [b][r][a] is row r of column a of body b (zeros beyond the joint's nv): the
+// per-pass helpers' layout
+template <typename S> RBD_HD void store_dof_columns(const ModelView<S>& m, const Motion<S>* cols, S* out) {
+  for (int b = 0; b < m.nb; ++b)
+    for (int a = 0; a < 6; ++a) {
+      S x[6];
+      for (int r = 0; r < 6; ++r) x[r] = S(0);
+      if (a < m.body[b].nv) store(cols[6 * b + a], x);
+      for (int r = 0; r < 6; ++r) out[(b * 6 + r) * 6 + a] = x[r];
+    }
+}
+template <typename S> RBD_HD void load_dof_columns(const ModelView<S>& m, const S* in, Motion<S>* cols) {
+  for (int b = 0; b < m.nb; ++b)
+    for (int a = 0; a < m.body[b].nv; ++a) {
+      S x[6];
+      for (int r = 0; r < 6; ++r) x[r] = in[(b * 6 + r) * 6 + a];
+      cols[6 * b + a] = load_motion(x);
+    }
+}
+
 }  // namespace rbd

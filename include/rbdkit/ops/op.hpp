@@ -70,6 +70,7 @@ enum ArgKind : unsigned char {
   kChoice,         // one of `choices` by name (default index: `value`)
   kIntegrator,     // an integrator by name (integrator_from_name; default index: `value`)
   kConvention,     // an output convention by name (convention_from_name; default index: `value`)
+  kFdStep,         // a finite-difference step: finite, > 0 (default: `value`)
 };
 
 // the value checks of an array, one pass over its values
@@ -78,6 +79,7 @@ enum ValueCheck : unsigned char {
   kConfiguration,  // a configuration: finite, angles at most kMaxAngle, unit quaternions (in the op's
                    // convention when it has a kConvention parameter)
   kMujocoConfiguration,  // the same in MuJoCo's layout (quaternions w x y z), whatever the op's convention
+  kWeights,        // finite, non-negative (a cost's diagonal weights)
 };
 
 struct ArgSpec {
@@ -127,6 +129,17 @@ enum OpScratch : unsigned char {
   kScratch2NvNv,           // 2 nv²
   kScratchIntegrator,      // integrator_scratch_values(nq, nv)
   kScratchIntegratorGrad,  // integrator_gradient_scratch_values(nq, nv)
+  kScratchNvNv,            // nv²
+  kScratchDccrbaFd,        // dccrba_fd_scratch(nq, nv)
+  kScratchCmmFd,           // 6 nv² + dccrba_fd_scratch(nq, nv)
+  kScratchComCost,         // com_cost_scratch(nq, nv)
+  kScratchMomentumCost,    // momentum_cost_scratch(nq, nv)
+};
+
+// what an operation needs of the model
+enum OpModel : unsigned char {
+  kAnyModel,
+  kNoMimic,  // a model without mimic joints (the direct M⁻¹'s passes)
 };
 
 struct OpSpec {
@@ -143,6 +156,7 @@ struct OpSpec {
   OpWorkspace workspace;
   OpScratch scratch;
   OpFailure failure;
+  OpModel model = kAnyModel;
 };
 
 // one sample's call, indexed by argument (the spec's order): an array's

@@ -17,6 +17,7 @@
 #include "../algorithms/aba.hpp"
 #include "../algorithms/aba_derivatives.hpp"
 #include "../algorithms/centroidal.hpp"
+#include "../algorithms/costs.hpp"
 #include "../algorithms/crba.hpp"
 #include "../algorithms/energy.hpp"
 #include "../algorithms/fdsva_so.hpp"
@@ -197,6 +198,144 @@ struct FExtGradient {
     return fext_derivatives(m, w, a.in[0], a.out[0], a.out[1]);
   }
 };
+
+// ---------------------------------------------------------------- per-pass helpers
+// The passes of RNEA, M⁻¹ and ∂ID one at a time, so that a port (an
+// accelerator's kernels) can be checked pass by pass. Per-body columns are
+// (nb, 6, 6): [b, :, a] is column a of body b's joint (zeros beyond its nv).
+
+#define RBD_STATE_ARGS                                                                                  \
+  array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv))
+
+struct InverseDynamicsFpass {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics_fpass", "inverse_dynamics", "rnea",
+      "RNEA forward pass: per body (nb, 6), body frame: velocity v, acceleration a (with the fictitious gravity "
+      "acceleration -g) and the net body force f = I a + v ×* I v - f_ext.",
+      5, {RBD_STATE_ARGS, real("gravity", kGravity), optional_array("f_ext", shape(kNb, 6))},
+      3, {{"v", shape(kNb, 6)}, {"a", shape(kNb, 6)}, {"f", shape(kNb, 6)}}, 0b111, 0, kLinear, kNoScratch,
+      kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    rnea_forward_pass(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3]);
+    for (int i = 0; i < m.nb; ++i) {
+      if (a.out[0]) store(w.v[i], a.out[0] + 6 * i);
+      if (a.out[1]) store(w.a[i], a.out[1] + 6 * i);
+      if (a.out[2]) store(w.f[i], a.out[2] + 6 * i);
+    }
+    return true;
+  }
+};
+
+struct ApplyExternalForces {
+  static constexpr OpSpec spec = {
+      "apply_external_forces", "inverse_dynamics", "rnea",
+      "f_in - f_ext per body, both (nb, 6) in body frames: the net body forces once the external forces are taken "
+      "away (the step RNEA's forward pass ends with).",
+      2, {array("f_in", shape(kNb, 6)), array("f_ext", shape(kNb, 6))},
+      1, {{"f", shape(kNb, 6)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    for (int k = 0; k < 6 * m.nb; ++k) a.out[0][k] = a.in[0][k] - a.in[1][k];
+    return true;
+  }
+};
+
+struct InverseDynamicsBpass {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics_bpass", "inverse_dynamics", "rnea",
+      "RNEA backward pass from net body forces f (nb, 6): (c (nv,), the joint forces (nb, 6), body frame). "
+      "inverse_dynamics_bpass(q, inverse_dynamics_fpass(...)[2]) is inverse_dynamics.",
+      2, {array("q", shape(kNq), kConfiguration), array("f", shape(kNb, 6))},
+      2, {{"tau", shape(kNv)}, {"f_joint", shape(kNb, 6)}}, 0b11, 0, kLinear, kScratchNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    for (int i = 0; i < m.nb; ++i) {
+      w.X[i] = body_transform(m.body[i], a.in[0]);
+      w.f[i] = load_force(a.in[1] + 6 * i);
+    }
+    rnea_backward_pass(m, w, a.out[0] ? a.out[0] : a.scratch);
+    if (a.out[1])
+      for (int i = 0; i < m.nb; ++i) store(w.f[i], a.out[1] + 6 * i);
+    return true;
+  }
+};
+
+struct MinvBpass {
+  static constexpr OpSpec spec = {
+      "minv_bpass", "minv", "minv",
+      "Backward pass of the direct M⁻¹: the rows of each joint over its subtree's columns (nv, nv; zeros "
+      "elsewhere). Models without mimic joints.",
+      1, {array("q", shape(kNq), kConfiguration)},
+      1, {{"Minv_b", shape(kNv, kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite, kNoMimic};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return minv_backward_pass(m, w, a.in[0], a.out[0]);
+  }
+};
+
+struct MinvFpass {
+  static constexpr OpSpec spec = {
+      "minv_fpass", "minv", "minv",
+      "Forward pass of the direct M⁻¹ from minv_bpass's result minv_b (nv, nv): the upper triangle of M⁻¹ "
+      "(nv, nv; zeros below). Models without mimic joints.",
+      2, {array("q", shape(kNq), kConfiguration), array("minv_b", shape(kNv, kNv))},
+      1, {{"Minv", shape(kNv, kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite, kNoMimic};
+  // the backward pass's articulated quantities (U, D⁻¹, S), then the forward pass on the given rows
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    const int nv = m.nv;
+    S* out = a.out[0];
+    if (!minv_backward_pass(m, w, a.in[0], out)) return false;
+    for (int k = 0; k < nv * nv; ++k) out[k] = a.in[1][k];
+    minv_forward_pass(m, w, out);
+    for (int r = 1; r < nv; ++r)
+      for (int c = 0; c < r; ++c) out[r * nv + c] = S(0);
+    return true;
+  }
+};
+
+// the forward pass of ∂ID: the DoF columns with respect to q (dV_dq, dA_dq) or qd (S, dA_dqd), world frame
+template <int Wrt> struct InverseDynamicsGradientFpass {
+  static constexpr OpSpec spec = {
+      Wrt == 0 ? "inverse_dynamics_gradient_fpass_dq" : "inverse_dynamics_gradient_fpass_dqd",
+      "inverse_dynamics_gradient", "rnea_derivatives",
+      Wrt == 0 ? "Forward pass of ∂ID/∂q: per body (nb, 6, 6), [b, :, a] the world-frame column of DoF a of body "
+                 "b's joint: (dV_dq = v_λ × s, dA_dq = a_λ × s + v_λ × dV_dq)."
+               : "Forward pass of ∂ID/∂qd: per body (nb, 6, 6): (S = s, the world-frame motion subspace, "
+                 "dA_dqd = v × s + v_λ × s).",
+      4, {RBD_STATE_ARGS, real("gravity", kGravity)},
+      2, {{Wrt == 0 ? "dV_dq" : "S", shape(kNb, 6, 6)}, {Wrt == 0 ? "dA_dq" : "dA_dqd", shape(kNb, 6, 6)}},
+      0b11, 0, kFull, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[3]);
+    if (a.out[0]) store_dof_columns(m, Wrt == 0 ? w.dVdq : w.Sw, a.out[0]);
+    if (a.out[1]) store_dof_columns(m, Wrt == 0 ? w.dAdq : w.dAdv, a.out[1]);
+    return true;
+  }
+};
+
+// the backward pass of ∂ID from the caller's DoF columns (the forward pass's outputs)
+template <int Wrt> struct InverseDynamicsGradientBpass {
+  static constexpr OpSpec spec = {
+      Wrt == 0 ? "inverse_dynamics_gradient_bpass_dq" : "inverse_dynamics_gradient_bpass_dqd",
+      "inverse_dynamics_gradient", "rnea_derivatives",
+      Wrt == 0 ? "Backward pass of ∂ID/∂q from the forward pass's columns: ∂c/∂q (nv, nv)."
+               : "Backward pass of ∂ID/∂qd from the forward pass's columns: ∂c/∂qd (nv, nv).",
+      6,
+      {RBD_STATE_ARGS, array(Wrt == 0 ? "dV_dq" : "S", shape(kNb, 6, 6)),
+       array(Wrt == 0 ? "dA_dq" : "dA_dqd", shape(kNb, 6, 6)), real("gravity", kGravity)},
+      1, {{Wrt == 0 ? "dtau_dq" : "dtau_dqd", shape(kNv, kNv)}}, 0b1, 0, kFull, kScratchNvNv, kNotPositiveDefinite};
+  // the composites from the state, the DoF columns from the caller
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[5]);
+    load_dof_columns(m, a.in[3], Wrt == 0 ? w.dVdq : w.Sw);
+    load_dof_columns(m, a.in[4], Wrt == 0 ? w.dAdq : w.dAdv);
+    if (Wrt == 0) rnea_derivatives_backward_pass(m, w, a.out[0], a.scratch, static_cast<S*>(nullptr));
+    else rnea_derivatives_backward_pass(m, w, a.scratch, a.out[0], static_cast<S*>(nullptr));
+    return true;
+  }
+};
+using InverseDynamicsGradientFpassDq = InverseDynamicsGradientFpass<0>;
+using InverseDynamicsGradientFpassDqd = InverseDynamicsGradientFpass<1>;
+using InverseDynamicsGradientBpassDq = InverseDynamicsGradientBpass<0>;
+using InverseDynamicsGradientBpassDqd = InverseDynamicsGradientBpass<1>;
+#undef RBD_STATE_ARGS
 
 // ---------------------------------------------------------------- second-order derivatives (IDSVA-SO, FDSVA-SO)
 // Each tensor is (nv, nv, nv), index order [i, j, k]; rbdkit/algorithms/idsva_so.hpp and fdsva_so.hpp.
@@ -575,6 +714,29 @@ struct CmmTimeVariation {
   }
 };
 
+struct DccrbaFd {
+  static constexpr OpSpec spec = {
+      "dccrba_fd", "dccrba", "centroidal",
+      "dccrba by central finite differences of ccrba through integrate (step eps): a cross-check of the analytic "
+      "dccrba, not for production. dA (6, nv, nv).",
+      2, {array("q", shape(kNq), kConfiguration), param("eps", kFdStep, 1e-5)},
+      1, {{"dA", shape(6, kNv, kNv)}}, 0b1, 0, kLinear, kScratchDccrbaFd, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return dccrba_fd(m, w, a.in[0], a.real[1], a.out[0], a.scratch);
+  }
+};
+
+struct CmmTimeVariationFd {
+  static constexpr OpSpec spec = {
+      "cmm_time_variation_fd", "dccrba", "centroidal",
+      "cmm_time_variation from dccrba_fd (finite differences, step eps): a cross-check only. Ȧ (6, nv).",
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), param("eps", kFdStep, 1e-5)},
+      1, {{"Adot", shape(6, kNv)}}, 0b1, 0, kLinear, kScratchCmmFd, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return cmm_time_variation_fd(m, w, a.in[0], a.in[1], a.real[2], a.out[0], a.scratch);
+  }
+};
+
 struct CentroidalMomentumTimeVariation {
   static constexpr OpSpec spec = {
       "centroidal_momentum_time_variation", "dccrba", "centroidal",
@@ -647,6 +809,117 @@ struct PotentialEnergyRegressor {
   }
 };
 
+struct InverseDynamicsRegressorGradient {
+  static constexpr OpSpec spec = {
+      "inverse_dynamics_regressor_gradient", "regressor_gradient", "regressor",
+      "dY_dx (2·nv, nv, 10·nb): dY_dx[c] = ∂Y/∂x_c for x = [q (tangent step through integrate); qd], so "
+      "dY_dx[c] @ π is column c of inverse_dynamics_gradient(q, qd, qdd); qdd=None means zero. O(10·n·d²) after "
+      "one forward pass.",
+      4,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
+       real("gravity", kGravity)},
+      1, {{"dY", shape(k2Nv, kNv, k10Nb)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    inverse_dynamics_regressor_gradient(m, w, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0]);
+    return true;
+  }
+};
+
+struct ForwardDynamicsParameterGradient {
+  static constexpr OpSpec spec = {
+      "forward_dynamics_parameter_gradient", "forward_dynamics_parameter_gradient", "regressor",
+      "∂qdd/∂π (nv, 10·nb) of qdd = forward_dynamics(q, qd, u): -M⁻¹ Y with Y evaluated at that qdd (nv,, the "
+      "second output).",
+      4,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("u", shape(kNv)),
+       real("gravity", kGravity)},
+      2, {{"dqdd_dpi", shape(kNv, k10Nb)}, {"qdd", shape(kNv)}}, 0b01, 0, kFull, kScratchNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return forward_dynamics_parameter_gradient(m, w, a.in[0], a.in[1], a.in[2], a.real[3],
+                                               a.out[1] ? a.out[1] : a.scratch, a.out[0]);
+  }
+};
+
+// ---------------------------------------------------------------- costs (the plant layer: algorithms/costs.hpp)
+// (value, gradient, Hessian) per knot point, NX = nq + nv. Weights are diagonal, given as vectors of
+// non-negative values. output_convention="mujoco": x, q, qd in MuJoCo's qpos/qvel layout and frames, the
+// tangent error and the tangent blocks of the derivatives along MuJoCo's ⊖ / ⊕; the quadratic costs act on
+// the given vectors coordinate by coordinate, so there only the layout of the targets changes.
+
+#define RBD_COST_OUTS(n) 3, {{"value", scalar()}, {"grad", shape(n)}, {"H", shape(n, n)}}, 0b111, 0
+
+struct QuadraticStateCost {
+  static constexpr OpSpec spec = {
+      "quadratic_state_cost", "state_costs", "costs",
+      "½ Σ Q (x - x_des)² on x = [q; qd] (nq + nv,): (value, grad (nq + nv,), H (nq + nv, nq + nv)), exact, in "
+      "ambient coordinates.",
+      4, {array("x", shape(kNx)), array("x_des", shape(kNx)), array("Q", shape(kNx), kWeights),
+          param("output_convention", kConvention, 0)},
+      RBD_COST_OUTS(kNx), kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    a.out[0][0] = quadratic_cost(m.nq + m.nv, a.in[0], a.in[1], a.in[2], a.out[1], a.out[2]);
+    return true;
+  }
+};
+
+struct QuadraticInputCost {
+  static constexpr OpSpec spec = {
+      "quadratic_input_cost", "state_costs", "costs",
+      "½ Σ R (u - u_des)²: (value, grad (nv,), H (nv, nv)), exact.",
+      4, {array("u", shape(kNv)), array("u_des", shape(kNv)), array("R", shape(kNv), kWeights),
+          param("output_convention", kConvention, 0)},
+      RBD_COST_OUTS(kNv), kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    a.out[0][0] = quadratic_cost(m.nv, a.in[0], a.in[1], a.in[2], a.out[1], a.out[2]);
+    return true;
+  }
+};
+
+struct QuadraticStateCostTangent {
+  static constexpr OpSpec spec = {
+      "quadratic_state_cost_tangent", "state_costs", "costs",
+      "½ eᵀ diag(Q) e with the log-map error e = [difference(q_des, q); qd - qd_des], Q (2·nv,): (value, "
+      "grad Jᵀ Q e (2·nv,), Gauss–Newton H = Jᵀ Q J (2·nv, 2·nv)).",
+      4, {array("x", shape(kNx), kConfiguration), array("x_des", shape(kNx), kConfiguration),
+          array("Q", shape(k2Nv), kWeights), param("output_convention", kConvention, 0)},
+      RBD_COST_OUTS(k2Nv), kLinear, kScratch2NvNv, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    a.out[0][0] = quadratic_state_cost_tangent(m, a.in[0], a.in[1], a.in[2], a.out[1], a.out[2], a.scratch,
+                                               a.choice[3]);
+    return true;
+  }
+};
+
+struct ComCost {
+  static constexpr OpSpec spec = {
+      "com_cost", "com_cost", "costs",
+      "½ Σ W (com(q) - p_des)², p_des and W (3,): (value, grad (nq + nv,), Gauss–Newton H (nq + nv, nq + nv)); "
+      "the tangent δq in entries [0, nv), the extra quaternion coordinates [nv, nq) and the velocities [nq, nq + "
+      "nv) zero.",
+      4, {array("q", shape(kNq), kConfiguration), array("p_des", shape(3)), array("W", shape(3), kWeights),
+          param("output_convention", kConvention, 0)},
+      RBD_COST_OUTS(kNx), kLinear, kScratchComCost, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return com_cost(m, w, a.in[0], a.in[1], a.in[2], a.choice[3], a.out[0], a.out[1], a.out[2], a.scratch);
+  }
+};
+
+struct MomentumCost {
+  static constexpr OpSpec spec = {
+      "momentum_cost", "momentum_cost", "costs",
+      "½ Σ W r² with r = A(q)·qd - h_des (6,), W (6,): (value, grad Jᵀ W r (2·nv,), Gauss–Newton H = Jᵀ W J "
+      "(2·nv, 2·nv)) in tangent [δq | δqd] coordinates, J = [(∂A/∂q)·qd | A] from dccrba (the configuration "
+      "dependence is kept, only the residual's curvature is dropped).",
+      5, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("h_des", shape(6)),
+          array("W", shape(6), kWeights), param("output_convention", kConvention, 0)},
+      RBD_COST_OUTS(k2Nv), kLinear, kScratchMomentumCost, kNoMass};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    return momentum_cost(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.choice[4], a.out[0], a.out[1], a.out[2],
+                         a.scratch);
+  }
+};
+#undef RBD_COST_OUTS
+
 // ---------------------------------------------------------------- the list
 
 template <typename... Op> struct OpList {
@@ -668,7 +941,12 @@ using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crb
                       Dccrba, CmmTimeVariation, CentroidalMomentumTimeVariation, CentroidalDynamicsDerivatives,
                       InverseDynamicsRegressor,
                       KineticEnergyRegressor, PotentialEnergyRegressor, StateToMujoco, StateFromMujoco,
-                      ForceToMujoco, ForceFromMujoco, MujocoIntegrate, MujocoDifference>;
+                      ForceToMujoco, ForceFromMujoco, MujocoIntegrate, MujocoDifference, InverseDynamicsFpass,
+                      ApplyExternalForces, InverseDynamicsBpass, MinvBpass, MinvFpass, InverseDynamicsGradientFpassDq,
+                      InverseDynamicsGradientFpassDqd, InverseDynamicsGradientBpassDq,
+                      InverseDynamicsGradientBpassDqd, DccrbaFd, CmmTimeVariationFd,
+                      InverseDynamicsRegressorGradient, ForwardDynamicsParameterGradient, QuadraticStateCost,
+                      QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost>;
 
 }  // namespace ops
 }  // namespace rbd

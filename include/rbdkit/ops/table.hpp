@@ -36,7 +36,7 @@ struct OpCall {
   long B = 1;                       // samples
   const void* in[kMaxArgs] = {};    // arrays: (B x shape) when batched[k], else (shape); null: absent
   bool batched[kMaxArgs] = {};
-  double real[kMaxArgs] = {};       // kReal, kTimeStep
+  double real[kMaxArgs] = {};       // kReal, kTimeStep, kFdStep
   int choice[kMaxArgs] = {};        // kFlag (0/1), kChoice, kIntegrator, kConvention
   void* out[kMaxOutputs] = {};      // (B x shape) or null
 };
