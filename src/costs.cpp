@@ -4,22 +4,12 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace rbd {
 namespace batch {
 
 namespace {
-// q (B x nq) in the convention's layout -> Pinocchio layout (a copy, or q itself)
-const double* pinocchio_configurations(const Model& m, long B, const double* q, int convention,
-                                       std::vector<double>& buf) {
-  check_configurations_in(m, B, q, "q", convention);
-  if (convention == kPinocchioConvention) return q;
-  buf.resize(B * m.nq);
-  const ModelView<double> mv = m.view();
-  for (long s = 0; s < B; ++s) configuration_from_mujoco(mv, q + s * m.nq, buf.data() + s * m.nq);
-  return buf.data();
-}
-
 void check_weights(const double* W, long n, const char* name) {
   check_finite(W, n, name);
   for (long k = 0; k < n; ++k)
@@ -61,31 +51,18 @@ void quadratic_state_cost_tangent(const Model& m, long B, const double* x, const
 void ee_pos_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, int body,
                  const double* offset, double* value, double* grad, double* H, int convention) {
   check_convention(convention);
-  std::vector<double> qbuf;
-  const double* q_mj = q;
-  q = pinocchio_configurations(m, B, q, convention, qbuf);
+  check_configurations_in(m, B, q, "q", convention);
   check_finite(p_des, B * 3, "p_des");
   check_weights(W, B * 3, "W");
-  const int nv = m.nv, nx = m.nq + m.nv;
-  EndEffectors ee;
-  ee.bodies = {body};
-  std::vector<double> off(B * 3, 0.0);
-  if (offset)
-    for (long s = 0; s < B; ++s)
-      for (int k = 0; k < 3; ++k) off[s * 3 + k] = offset[k];
-  ee.offsets = off.data();
-  std::vector<double> pose(B * 6), G(B * 6 * nv);
-  end_effector_pose(m, B, q, ee, pose.data());
-  end_effector_pose_gradient(m, B, q, ee, G.data());
-  if (convention == kMujocoConvention)
-    for (long s = 0; s < B; ++s) jacobian_cols_to_mujoco(m.view(), q_mj + s * m.nq, G.data() + s * 6 * nv, 6);
-  for (long s = 0; s < B; ++s) {
-    double r[3];
-    for (int k = 0; k < 3; ++k) r[k] = pose[s * 6 + k] - p_des[s * 3 + k];
-    // the position rows of the pose gradient are the residual's Jacobian
-    value[s] = residual_cost_embedded(3, r, W + s * 3, G.data() + s * 6 * nv, m.nq, nv, grad + s * nx,
-                                      H + s * nx * nx);
-  }
+  if (offset) check_finite(offset, 3, "ee_offset");
+  if (body < 0 || body >= m.nb()) throw std::invalid_argument("body: expected a body index below nb");
+  const int nx = m.nq + m.nv;
+  WorkspaceBuffer buf(m, kLinearWorkspace);
+  const ModelView<double> mv = m.view();
+  std::vector<double> scratch(ee_pos_cost_scratch(m.nq, m.nv));
+  for (long s = 0; s < B; ++s)
+    rbd::ee_pos_cost(mv, buf.get(), q + s * m.nq, p_des + s * 3, W + s * 3, body, offset, convention, value + s,
+                     grad + s * nx, H + s * nx * nx, scratch.data());
 }
 
 void com_cost(const Model& m, long B, const double* q, const double* p_des, const double* W, double* value,

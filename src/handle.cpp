@@ -166,9 +166,23 @@ void Handle::run(int op, const ops::OpCall& call) {
                                 std::to_string(call.B));
   if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
   else ops::check_call<double>(model_, *e.spec, call);
-  if (model_.nb() == 0) {
+  if (ops::takes_names(*e.spec)) {  // frames and end effectors for the kernels, then the same call
+    std::vector<double> f64;
+    std::vector<float> f32;
+    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, *e.spec, call, f32)
+                                                     : ops::resolve_names(model_, *e.spec, call, f64);
+    return dispatch(op, resolved);
+  }
+  dispatch(op, call);
+}
+
+void Handle::dispatch(int op, const ops::OpCall& call) {
+  const ops::OpEntry& e = ops::op_table()[op];
+  const bool no_bodies = model_.nb() == 0;
+  if (no_bodies && !ops::takes_names(*e.spec)) {
     // no joints: no bodies and no mass. Outputs of the model's sizes are empty; the others (an energy, a
-    // centre of mass) are a sum over no bodies, 0, or undefined without mass
+    // centre of mass) are a sum over no bodies, 0, or undefined without mass. (A frame on the world has
+    // its placement: the serial loop below.)
     if (e.spec->failure == ops::kNoMass) ops::throw_failure(model_, *e.spec, nullptr, -1);
     const size_t bytes = dtype_ == "float32" ? sizeof(float) : sizeof(double);
     for (int o = 0; o < e.spec->n_out; ++o)
@@ -177,11 +191,27 @@ void Handle::run(int op, const ops::OpCall& call) {
   }
   // the engine for float32 and for batches; one float64 sample on the serial
   // loop (a pack of W lanes would compute W - 1 copies of it)
-  if (engine_ && (dtype_ == "float32" || call.B > 1)) return engine_->run_op(op, call);
+  if (engine_ && !no_bodies && (dtype_ == "float32" || call.B > 1)) return engine_->run_op(op, call);
   std::lock_guard<std::mutex> lk(run_);
   const long n = ops::scratch_values(*e.spec, model_);
   if (static_cast<long>(op_scratch_.size()) < n) op_scratch_.resize(static_cast<size_t>(n));
-  ops::run_serial(model_, e, call, ws_.get(model_, ops::workspace_layout(*e.spec, model_)), op_scratch_.data());
+  Workspace<double>& w = ws_.get(model_, ops::workspace_layout(*e.spec, model_));
+  if (dtype_ != "float32") return ops::run_serial(model_, e, call, w, op_scratch_.data());
+  // float32 on a model without joints (a frame's placement): the float64 loop, rounded
+  const ops::OpSpec& spec = *e.spec;
+  ops::OpCall d = call;
+  std::vector<std::vector<double>> in(spec.n_args), out(spec.n_out);
+  for (int k = 0; k < spec.n_args; ++k)
+    if (call.in[k]) {
+      const float* x = static_cast<const float*>(call.in[k]);
+      in[k].assign(x, x + (call.batched[k] ? call.B : 1) * ops::arg_values(spec.args[k], model_));
+      d.in[k] = in[k].data();
+    }
+  for (int o = 0; o < spec.n_out; ++o)
+    if (call.out[o]) out[o].resize(call.B * ops::out_values(spec.out[o], model_)), d.out[o] = out[o].data();
+  ops::run_serial(model_, e, d, w, op_scratch_.data());
+  for (int o = 0; o < spec.n_out; ++o)
+    if (call.out[o]) std::copy(out[o].begin(), out[o].end(), static_cast<float*>(call.out[o]));
 }
 
 void Handle::require(const char* operation) const {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "rbdkit/dynamics.hpp"
+#include "rbdkit/kinematics_api.hpp"
 #include "rbdkit/mujoco_api.hpp"
 #include "rbdkit/ops/registry.hpp"
 
@@ -95,6 +96,39 @@ template <typename T> void check_configuration_values(const Model& m, const T* q
   throw std::logic_error("check_configuration_values: no bad value");
 }
 
+// bounds lo < hi entry by entry, each finite (at most Bounds<T>::input) or infinite on its side
+template <typename T> void check_bounds(const T* lo, bool lo_batched, const T* hi, bool hi_batched, long n, long B,
+                                        const char* lo_name, const char* hi_name) {
+  const long samples = lo_batched || hi_batched ? B : 1;
+  // finite values within the bound, each bound by itself
+  for (int side = 0; side < 2; ++side) {
+    const T* x = side ? hi : lo;
+    const long m = (side ? hi_batched : lo_batched) ? B : 1;
+    for (long s = 0; s < m; ++s)
+      for (long j = 0; j < n; ++j) {
+        const double v = x[s * n + j];
+        if (!std::isfinite(v) || std::fabs(v) <= Bounds<T>::input) continue;
+        std::ostringstream os;
+        os << label_of(side ? hi_name : lo_name, side ? hi_batched : lo_batched, s) << ": expected values of magnitude at most "
+           << Bounds<T>::input << " (larger ones overflow; an infinite bound is no bound), got " << v
+           << " at flat index " << j;
+        throw std::invalid_argument(os.str());
+      }
+  }
+  // then as a pair: not NaN, infinite only on their side, lower < upper
+  for (long s = 0; s < samples; ++s)
+    for (long j = 0; j < n; ++j) {
+      const double l = lo[(lo_batched ? s * n : 0) + j], h = hi[(hi_batched ? s * n : 0) + j];
+      if (l < h && l != INFINITY && h != -INFINITY) continue;
+      std::ostringstream os;
+      os << lo_name << ", " << hi_name << ": expected " << lo_name << " < " << hi_name << " (infinite bounds allowed: "
+         << "-inf below, +inf above), got " << l << " and " << h << " at ";
+      if (samples > 1) os << "sample " << s << ", ";
+      os << "flat index " << j;
+      throw std::invalid_argument(os.str());
+    }
+}
+
 [[noreturn]] void bad_param(const ArgSpec& a, const std::string& what) {
   throw std::invalid_argument(std::string(a.name) + ": " + what);
 }
@@ -148,6 +182,7 @@ long scratch_values(const OpSpec& op, const Model& m) {
     case kScratchCmmFd: return 6L * m.nv * m.nv + dccrba_fd_scratch(m.nq, m.nv);
     case kScratchComCost: return com_cost_scratch(m.nq, m.nv);
     case kScratchMomentumCost: return momentum_cost_scratch(m.nq, m.nv);
+    case kScratchEePosCost: return ee_pos_cost_scratch(m.nq, m.nv);
   }
   return 0;
 }
@@ -187,11 +222,12 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
         }
         break;
       case kTimeStep: check_time_step(c.real[k], a.name); break;
-      case kFdStep:
+      case kPositive:
         if (!(c.real[k] > 0 && c.real[k] <= Bounds<T>::input)) {
           std::ostringstream os;
-          if (std::isfinite(c.real[k])) os << "expected a positive finite-difference step, got " << c.real[k];
-          else os << "expected a finite number, got " << c.real[k];
+          if (!std::isfinite(c.real[k])) os << "expected a finite number, got " << c.real[k];
+          else if (c.real[k] > 0) os << "expected a magnitude of at most " << Bounds<T>::input << ", got " << c.real[k];
+          else os << "expected a positive " << (a.choices ? a.choices[0] : "number") << ", got " << c.real[k];
           bad_param(a, os.str());
         }
         break;
@@ -209,6 +245,18 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
                        "constant_acceleration), got " + std::to_string(c.choice[k]));
         break;
       case kConvention: check_convention(c.choice[k]); break;
+      case kFrame:
+        if (c.choice[k] < 0 || c.choice[k] >= static_cast<int>(m.frames.size()))
+          bad_param(a, "expected a frame index in 0.." + std::to_string(m.frames.size() - 1) + ", got " +
+                           std::to_string(c.choice[k]));
+        break;
+      case kEndEffector:
+        if (c.choice[k] < -1 || c.choice[k] >= m.nb())
+          bad_param(a, "expected a body index in 0.." + std::to_string(m.nb() - 1) + " (-1: the first leaf body), got " +
+                           std::to_string(c.choice[k]));
+        if (c.choice[k] == -1 && m.nb() == 0)
+          bad_param(a, "the model has no joints (nq = 0), so it has no end effector");
+        break;
     }
   }
   const int convention = call_convention(op, c);
@@ -232,6 +280,12 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
             }
       continue;
     }
+    if (a.check == kLowerBound) continue;  // with its upper bound, the argument after it
+    if (a.check == kUpperBound) {
+      check_bounds(static_cast<const T*>(c.in[k - 1]), c.batched[k - 1], x, c.batched[k], n, c.B,
+                   op.args[k - 1].name, a.name);
+      continue;
+    }
     // a configuration, or a state [q; qd] whose first nq values are one
     for (long s = 0; s < samples; ++s) {
       check_configuration_values(m, x + s * n, a.name, c.batched[k], s,
@@ -242,6 +296,32 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
 }
 template void check_call<double>(const Model&, const OpSpec&, const OpCall&);
 template void check_call<float>(const Model&, const OpSpec&, const OpCall&);
+
+bool takes_names(const OpSpec& op) {
+  for (int k = 0; k < op.n_args; ++k)
+    if (op.args[k].kind == kFrame || op.args[k].kind == kEndEffector) return true;
+  return false;
+}
+
+template <typename T> OpCall resolve_names(const Model& m, const OpSpec& op, const OpCall& c, std::vector<T>& frames) {
+  OpCall r = c;
+  frames.assign(12 * op.n_args, T(0));
+  for (int k = 0; k < op.n_args; ++k) {
+    if (op.args[k].kind == kEndEffector && c.choice[k] == -1) r.choice[k] = leaf_bodies(m).front();
+    if (op.args[k].kind != kFrame) continue;
+    const FrameInfo& f = m.frames[c.choice[k]];
+    T* x = frames.data() + 12 * k;
+    for (int j = 0; j < 9; ++j) x[j] = static_cast<T>(f.X_body_frame.R.m[j]);
+    x[9] = static_cast<T>(f.X_body_frame.p.x), x[10] = static_cast<T>(f.X_body_frame.p.y);
+    x[11] = static_cast<T>(f.X_body_frame.p.z);
+    r.choice[k] = f.body;
+    r.in[k] = x;
+    r.batched[k] = false;
+  }
+  return r;
+}
+template OpCall resolve_names<double>(const Model&, const OpSpec&, const OpCall&, std::vector<double>&);
+template OpCall resolve_names<float>(const Model&, const OpSpec&, const OpCall&, std::vector<float>&);
 
 void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample) {
   if (op.failure == kNoMass) {
@@ -261,6 +341,7 @@ void throw_failure(const Model& m, const OpSpec& op, const double* q, long sampl
 }
 
 template <typename T> void check_outputs(const Model& m, const OpSpec& op, const OpCall& c) {
+  if (op.outputs == kInfiniteOutside) return;
   for (int o = 0; o < op.n_out; ++o) {
     if (!c.out[o]) continue;
     const T* x = static_cast<const T*>(c.out[o]);

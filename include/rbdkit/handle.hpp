@@ -157,6 +157,7 @@ class Handle {
 
  private:
   void require(const char* operation) const;  // throws unless has(operation)
+  void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
   Model model_;

@@ -39,23 +39,16 @@ free-flyer or spherical joint, whose tangent directions do not commute.
 import numpy as np
 
 from . import _core
-from ._checks import Batch, as_real_array, check_choice
-
-REFERENCE_FRAMES = ("LOCAL", "WORLD", "LOCAL_WORLD_ALIGNED")
+from ._checks import Batch, as_real_array
 
 
 class KinematicsMixin:
-    """Kinematics methods of RBD (see the module doc for shapes and conventions)."""
+    """The end-effector methods of RBD (see the module doc for shapes and
+    conventions). forward_kinematics, frame_placement, frame_jacobian and
+    frame_jacobian_dot are registered operations
+    (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself."""
 
     # ---- argument helpers
-    def _frame(self, frame_name, name="frame_name"):
-        if not isinstance(frame_name, str):
-            raise TypeError(f"{name}: expected a frame name (str), got {type(frame_name).__name__}")
-        return _core.frame_from_name(self._m, frame_name)
-
-    def _reference_frame(self, reference_frame):
-        return check_choice(reference_frame, "reference_frame", REFERENCE_FRAMES)
-
     def _ee_bodies(self, ee_joint_names, name="ee_joint_names"):
         """body indices of the end effectors: the leaf bodies by default"""
         if ee_joint_names is None:
@@ -92,52 +85,6 @@ class KinematicsMixin:
         out = b.out(len(bodies), *out_shape)
         fn(self._m, b.get(iq), bodies, None if io is None else b.get(io), offsets_name, *extra, out)
         return b.ret(out)
-
-    # ---- placements
-    def forward_kinematics(self, q):
-        """Placements X_world_body of every body: (R (nb, 3, 3), p (nb, 3)),
-        x_world = R x_body + p; a body's frame is its joint's child frame."""
-        b = Batch()
-        iq = self._q(b, q)
-        R, p = b.out(self.nb, 3, 3), b.out(self.nb, 3)
-        _core.forward_kinematics(self._m, b.get(iq), R, p)
-        return b.ret(R), b.ret(p)
-
-    def frame_placement(self, q, frame_name):
-        """Placement of a named frame (link or joint, fixed ones included) in
-        the world: (R (3, 3), p (3,)), x_world = R x_frame + p (Pinocchio's data.oMf)."""
-        f = self._frame(frame_name)
-        b = Batch()
-        iq = self._q(b, q)
-        R, p = b.out(3, 3), b.out(3)
-        _core.frame_placement(self._m, b.get(iq), f, R, p)
-        return b.ret(R), b.ret(p)
-
-    # ---- frame Jacobians
-    def frame_jacobian(self, q, frame_name, reference_frame="LOCAL"):
-        """Geometric Jacobian J (6, nv) of a named frame, rows [linear;
-        angular], in reference_frame "LOCAL", "WORLD" or
-        "LOCAL_WORLD_ALIGNED" (Pinocchio's getFrameJacobian): J·v is the
-        frame's velocity in that frame."""
-        f = self._frame(frame_name)
-        rf = self._reference_frame(reference_frame)
-        b = Batch()
-        iq = self._q(b, q)
-        J = b.out(6, self.nv)
-        _core.frame_jacobian(self._m, b.get(iq), f, rf, J)
-        return b.ret(J)
-
-    def frame_jacobian_dot(self, q, qd, frame_name, reference_frame="LOCAL"):
-        """Time variation dJ/dt (6, nv) of frame_jacobian(q, frame_name,
-        reference_frame) along qd (Pinocchio's getFrameJacobianTimeVariation):
-        the frame's acceleration in that frame is J·qdd + dJ·qd."""
-        f = self._frame(frame_name)
-        rf = self._reference_frame(reference_frame)
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, qd, "qd")
-        dJ = b.out(6, self.nv)
-        _core.frame_jacobian_dot(self._m, b.get(iq), b.get(iv), f, rf, dJ)
-        return b.ret(dJ)
 
     # ---- end effectors
     def end_effector_pose(self, q, ee_joint_names=None, ee_offsets=None):

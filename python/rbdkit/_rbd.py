@@ -20,7 +20,6 @@ import numpy as np
 
 from . import _core
 from ._checks import Batch, check_choice, check_values
-from ._costs import CostsMixin
 from ._integrators import IntegratorsMixin
 from ._model import Model
 from ._kinematics import KinematicsMixin
@@ -28,7 +27,7 @@ from ._kinematics import KinematicsMixin
 GRAVITY = -9.81
 
 
-class RBD(KinematicsMixin, IntegratorsMixin, CostsMixin):
+class RBD(KinematicsMixin, IntegratorsMixin):
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):
@@ -96,7 +95,7 @@ class RBD(KinematicsMixin, IntegratorsMixin, CostsMixin):
 # ---- the registered operations' class attributes: signature and doc from
 # the registry; a call goes to the instance's compiled callable
 REGISTERED = tuple(op[0] for op in _core.registered_operations())
-_NO_DEFAULT = ("array", "dt")
+_NO_DEFAULT = ("array", "dt", "frame")
 
 
 def _registered_method(name, doc, args):
@@ -107,7 +106,7 @@ def _registered_method(name, doc, args):
     # an optional array before a required one (the per-pass helpers' qdd) is
     # shown without its default: a signature cannot have one there, and the
     # call still takes None for it
-    required = [kind in _NO_DEFAULT for _, kind, _ in args]
+    required = [kind in _NO_DEFAULT or (kind in ("real", "positive") and default is None) for _, kind, default in args]
     last_required = max((k for k, r in enumerate(required) if r), default=-1)
     params = [P("self", P.POSITIONAL_OR_KEYWORD)]
     params += [P(arg, P.POSITIONAL_OR_KEYWORD, default=P.empty if required[k] or k < last_required else default)

@@ -1,7 +1,9 @@
 // rbdkit._core — bindings of the kinematics family (kinematics_api.hpp).
 //
-// Thin, like bindings.cpp: the Python layer (python/rbdkit/_kinematics.py)
-// checks shapes and resolves names once per call; these functions take
+// The end-effector operations, which are not registered operations yet (the
+// others: ops/registry.hpp, bind_ops.cpp). Thin, like bindings.cpp: the
+// Python layer (python/rbdkit/_kinematics.py) checks shapes and resolves
+// names once per call; these functions take
 // C-contiguous float64 arrays with the batch on axis 0, check values in C++
 // and run the batched loops with the GIL released.
 #include <nanobind/nanobind.h>
@@ -24,8 +26,6 @@ using rbd_py::width;
 
 namespace {
 
-
-
 // end effectors from body indices and optional offsets (B x n_ee x 3)
 rbd::EndEffectors end_effectors(const std::vector<int>& bodies, const std::optional<In>& offsets, const char* arg) {
   rbd::EndEffectors ee;
@@ -39,28 +39,8 @@ rbd::EndEffectors end_effectors(const std::vector<int>& bodies, const std::optio
 
 void bind_kinematics(nb::module_& m) {
   // ---- names
-  m.def("reference_frame_from_name", &rbd::reference_frame_from_name, "name"_a);
-  m.def("frame_from_name", &rbd::frame_from_name, "model"_a, "name"_a);
   m.def("leaf_bodies", &rbd::leaf_bodies, "model"_a);
   m.def("end_effector_bodies", &rbd::end_effector_bodies, "model"_a, "joint_names"_a);
-
-  // ---- placements and frame Jacobians
-  m.def("forward_kinematics", [](const Model& md, In q, Out R, Out p) {
-    nb::gil_scoped_release r;
-    rbd::batch::forward_kinematics(md, batch_of(q), q.data(), R.data(), p.data());
-  });
-  m.def("frame_placement", [](const Model& md, In q, int frame, Out R, Out p) {
-    nb::gil_scoped_release r;
-    rbd::batch::frame_placement(md, batch_of(q), q.data(), frame, R.data(), p.data());
-  });
-  m.def("frame_jacobian", [](const Model& md, In q, int frame, int rf, Out J) {
-    nb::gil_scoped_release r;
-    rbd::batch::frame_jacobian(md, batch_of(q), q.data(), frame, rf, J.data());
-  });
-  m.def("frame_jacobian_dot", [](const Model& md, In q, In qd, int frame, int rf, Out dJ) {
-    nb::gil_scoped_release r;
-    rbd::batch::frame_jacobian_dot(md, batch_of(q), q.data(), qd.data(), frame, rf, dJ.data());
-  });
 
   // ---- end effectors: bodies (n_ee), offsets (B x n_ee x 3) or None
   m.def("end_effector_pose",

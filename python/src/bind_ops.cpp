@@ -34,6 +34,7 @@
 
 #include "rbdkit/handle.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/kinematics_api.hpp"
 #include "rbdkit/mujoco_api.hpp"
 #include "rbdkit/ops/table.hpp"
 
@@ -184,8 +185,37 @@ int as_choice(PyObject* o, const char* name, const char* const* choices) {
 }
 
 // a parameter of the spec into the call; false with an exception set
-bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, double bound) {
+bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, double bound) {
   switch (a.kind) {
+    case ops::kFrame:
+    case ops::kEndEffector: {
+      if (a.kind == ops::kEndEffector && o == Py_None) {
+        c.choice[k] = -1;  // the first leaf body
+        return true;
+      }
+      if (!PyUnicode_Check(o)) {
+        fail(PyExc_TypeError, std::string(a.name) + (a.kind == ops::kFrame ? ": expected a frame name (str), got "
+                                                                           : ": expected a joint name (str), got ") +
+                                  type_name(o));
+        return false;
+      }
+      const std::string name = PyUnicode_AsUTF8(o);
+      try {
+        if (a.kind == ops::kFrame) {
+          c.choice[k] = m.frame_index(name);
+        } else {
+          c.choice[k] = rbd::end_effector_bodies(m, {name}).front();
+        }
+      } catch (const std::exception& e) {
+        // end_effector_bodies names its own argument (ee_joint_names): this one's name instead
+        std::string msg = e.what();
+        const std::string own = "ee_joint_names: ";
+        if (msg.rfind(own, 0) == 0) msg = msg.substr(own.size());
+        fail(PyExc_ValueError, std::string(a.name) + ": " + msg);
+        return false;
+      }
+      return true;
+    }
     case ops::kReal:
       if (!as_real(o, a.name, c.real[k])) return false;
       if (std::fabs(c.real[k]) > bound) {
@@ -196,7 +226,7 @@ bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, doub
         return false;
       }
       return true;
-    case ops::kFdStep: return as_real(o, a.name, c.real[k]);  // positive: ops::check_call
+    case ops::kPositive: return as_real(o, a.name, c.real[k]);  // positive: ops::check_call
     case ops::kTimeStep:
       if (!as_real(o, a.name, c.real[k])) return false;
       if (!(c.real[k] > 0 && c.real[k] <= rbd::kMaxTimeStep)) {
@@ -238,7 +268,7 @@ bool parse_param(const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, doub
 
 // the default of a parameter into the call
 void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c) {
-  if (a.kind == ops::kReal || a.kind == ops::kTimeStep || a.kind == ops::kFdStep) c.real[k] = a.value;
+  if (a.kind == ops::kReal || a.kind == ops::kTimeStep || a.kind == ops::kPositive) c.real[k] = a.value;
   else c.choice[k] = static_cast<int>(a.value);
 }
 
@@ -289,7 +319,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       if (std::isnan(a.value))
         return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
       default_param(a, k, c);
-    } else if (!parse_param(a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput)) {
+    } else if (!parse_param(m, a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput)) {
       return nullptr;
     }
   }
@@ -340,7 +370,9 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
                                           std::to_string(B));
       B = d[0], source = k;
     }
-    if (wide) {  // float64 values bound for float32: within float32's bounds, then rounded
+    // float64 values bound for float32: within float32's bounds, then rounded (bounds may be
+    // infinite: ops::check_call checks them after rounding)
+    if (wide && a.check != ops::kLowerBound && a.check != ops::kUpperBound) {
       try {
         const long n = ops::arg_values(a, m);
         ops::check_bounded(static_cast<const double*>(PyArray_DATA(wide)), batched ? d[0] : 1, n, a.name, batched,
@@ -348,6 +380,8 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       } catch (const std::exception& e) {
         return fail(PyExc_ValueError, e.what());
       }
+    }
+    if (wide) {
       PyObject* c = PyArray_FromAny(reinterpret_cast<PyObject*>(wide), PyArray_DescrFromType(NPY_FLOAT), 0, 0,
                                     NPY_ARRAY_CARRAY | NPY_ARRAY_FORCECAST, nullptr);
       if (!c) return nullptr;
@@ -434,11 +468,12 @@ std::string signature_doc(const ops::OpSpec& op) {
     const ops::ArgSpec& a = op.args[k];
     s += (k ? ", " : "") + std::string(a.name);
     if (a.kind == ops::kOptionalArray) s += "=None";
-    else if ((a.kind == ops::kReal || a.kind == ops::kFdStep) && !std::isnan(a.value)) s += std::string("=") + nb::str(nb::float_(a.value)).c_str();
+    else if ((a.kind == ops::kReal || a.kind == ops::kPositive) && !std::isnan(a.value)) s += std::string("=") + nb::str(nb::float_(a.value)).c_str();
     else if (a.kind == ops::kFlag) s += a.value != 0 ? "=True" : "=False";
     else if (a.kind == ops::kChoice) s += std::string("='") + a.choices[static_cast<int>(a.value)] + "'";
     else if (a.kind == ops::kIntegrator) s += "='euler'";
     else if (a.kind == ops::kConvention) s += "='pinocchio'";
+    else if (a.kind == ops::kEndEffector) s += "=None";
   }
   return s + ")\n\n" + op.doc;
 }
@@ -492,10 +527,11 @@ void bind_ops(nb::module_& m) {
   if (!op_type()) throw nb::python_error();
 
   // [(name, algorithm, family, doc, [(argument, kind, default)])] in registry
-  // order; kind: array, optional, real, dt, flag, choice, integrator, step,
-  // convention; default: None where there is none
+  // order; kind: array, optional, real, dt, flag, choice, integrator, positive, frame, joint,
+  // convention; default: None where there is none (a required parameter)
   m.def("registered_operations", [] {
-    static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention", "step"};
+    static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention",
+                                  "positive", "frame", "joint"};
     nb::list out;
     for (const ops::OpEntry& e : ops::op_table()) {
       const ops::OpSpec& op = *e.spec;
@@ -503,7 +539,7 @@ void bind_ops(nb::module_& m) {
       for (int k = 0; k < op.n_args; ++k) {
         const ops::ArgSpec& a = op.args[k];
         nb::object def = nb::none();
-        if (a.kind == ops::kReal || a.kind == ops::kFdStep) def = nb::float_(a.value);
+        if ((a.kind == ops::kReal || a.kind == ops::kPositive) && !std::isnan(a.value)) def = nb::float_(a.value);
         else if (a.kind == ops::kFlag) def = nb::bool_(a.value != 0);
         else if (a.kind == ops::kChoice) def = nb::str(a.choices[static_cast<int>(a.value)]);
         else if (a.kind == ops::kIntegrator) def = nb::str("euler");

@@ -21,7 +21,6 @@ namespace nb = nanobind;
 using namespace nb::literals;
 
 void bind_integrators(nb::module_& m);  // bind_integrators.cpp
-void bind_costs(nb::module_& m);        // bind_costs.cpp
 using rbd::Model;
 using rbd_py::In;
 using rbd_py::Out;
@@ -78,7 +77,6 @@ NB_MODULE(_core, m) {
   m.attr("MAX_ANGLE") = rbd::kMaxAngle;
   m.attr("MAX_TIME_STEP") = rbd::kMaxTimeStep;
   bind_integrators(m);
-  bind_costs(m);
 
   nb::class_<Model>(m, "Model")
       .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false,

@@ -254,12 +254,14 @@ template <typename T, typename Op> struct Job {
           if (!out[o].p) continue;
           const long w = out[o].w;
           // results that overflowed despite the inputs' bounds
-          const P bad = nonfinite_lanes(a.out[o], w);
-          for (int l = 0; l < valid; ++l)
-            if (bad.v[l] != bad.v[l]) {
-              lower(nonfinite[o], s0 + l);
-              break;
-            }
+          if (op.outputs == ops::kFiniteOutputs) {
+            const P bad = nonfinite_lanes(a.out[o], w);
+            for (int l = 0; l < valid; ++l)
+              if (bad.v[l] != bad.v[l]) {
+                lower(nonfinite[o], s0 + l);
+                break;
+              }
+          }
           // scatter the valid lanes
           for (int l = 0; l < valid; ++l) {
             T* dst = out[o].p + (s0 + l) * w;
@@ -285,7 +287,9 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
   long values = ops::scratch_values(op, m);
   for (int k = 0; k < op.n_args; ++k) {
     const long w = ops::arg_values(op.args[k], m);
-    if ((op.args[k].kind == ops::kArray || op.args[k].kind == ops::kOptionalArray) && c.in[k]) {
+    // arrays, and a frame's placement (ops::resolve_names), packed per lane
+    if ((op.args[k].kind == ops::kArray || op.args[k].kind == ops::kOptionalArray || op.args[k].kind == ops::kFrame) &&
+        c.in[k]) {
       job.in[k] = {static_cast<const T*>(c.in[k]), w, c.batched[k] ? w : 0};
       values += w;
     }

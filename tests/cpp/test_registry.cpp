@@ -18,6 +18,7 @@
 #include "rbdkit/dynamics.hpp"
 #include "rbdkit/handle.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/kinematics_api.hpp"
 #include "rbdkit/mujoco_api.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
@@ -60,6 +61,10 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
         for (long j = 0; j < n; ++j) xs[j] = (a.shape.d[0] == ops::kNb ? 0.3 : 1.0) * U(rng);
         if (a.check == ops::kWeights)
           for (long j = 0; j < n; ++j) xs[j] = std::fabs(xs[j]);
+        // bounds around [-1, 1], every third one infinite
+        if (a.check == ops::kLowerBound || a.check == ops::kUpperBound)
+          for (long j = 0; j < n; ++j)
+            xs[j] = (a.check == ops::kLowerBound ? -1 : 1) * (j % 3 == 2 ? INFINITY : 2 + std::fabs(xs[j]));
         if (a.check == ops::kConfiguration || a.check == ops::kMujocoConfiguration) {
           // a configuration (the state's first nq values), in MuJoCo's layout where asked
           for (double& d : dv) d = U(rng);
@@ -71,8 +76,10 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
       in.call.batched[k] = true;
     } else if (a.kind == ops::kTimeStep) {
       in.call.real[k] = 0.01;
-    } else if (a.kind == ops::kReal || a.kind == ops::kFdStep) {
-      in.call.real[k] = a.value;
+    } else if (a.kind == ops::kFrame) {
+      in.call.choice[k] = static_cast<int>(m.frames.size()) / 2;  // a frame of a body in the middle of the tree
+    } else if (a.kind == ops::kReal || a.kind == ops::kPositive) {
+      in.call.real[k] = std::isnan(a.value) ? 0.1 : a.value;  // a required one: 0.1
     } else {
       in.call.choice[k] = static_cast<int>(a.value);
     }
@@ -168,7 +175,8 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "inverse_dynamics_gradient_fpass_dqd", "inverse_dynamics_gradient_bpass_dq",
         "inverse_dynamics_gradient_bpass_dqd", "dccrba_fd", "cmm_time_variation_fd",
         "inverse_dynamics_regressor_gradient", "forward_dynamics_parameter_gradient", "quadratic_state_cost_tangent",
-        "com_cost", "momentum_cost"}) {
+        "com_cost", "momentum_cost", "forward_kinematics", "frame_placement", "frame_jacobian", "frame_jacobian_dot",
+        "ee_pos_cost"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
@@ -271,6 +279,26 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         rbd::batch::momentum_cost(m, B, in_of(0), in_of(1), in_of(2), in_of(3), val.data(), g.data(), H.data());
       else
         rbd::batch::quadratic_state_cost_tangent(m, B, in_of(0), in_of(1), in_of(2), val.data(), g.data(), H.data());
+      interleave({&val, &g, &H});
+    } else if (n == "forward_kinematics") {
+      std::vector<double> R(B * m.nb() * 9), p(B * m.nb() * 3);
+      rbd::batch::forward_kinematics(m, B, in_of(0), R.data(), p.data());
+      interleave({&R, &p});
+    } else if (n == "frame_placement") {
+      std::vector<double> R(B * 9), p(B * 3);
+      rbd::batch::frame_placement(m, B, in_of(0), in.call.choice[1], R.data(), p.data());
+      interleave({&R, &p});
+    } else if (n == "frame_jacobian") {
+      rbd::batch::frame_jacobian(m, B, in_of(0), in.call.choice[1], in.call.choice[2], ref.data());
+    } else if (n == "frame_jacobian_dot") {
+      rbd::batch::frame_jacobian_dot(m, B, in_of(0), in_of(1), in.call.choice[2], in.call.choice[3], ref.data());
+    } else if (n == "ee_pos_cost") {  // the default end effector, each sample's own tool point
+      const long nx = m.nq + nv;
+      std::vector<double> val(B), g(B * nx), H(B * nx * nx);
+      for (long s = 0; s < B; ++s)
+        rbd::batch::ee_pos_cost(m, 1, in_of(0) + s * m.nq, in_of(1) + 3 * s, in_of(2) + 3 * s,
+                                rbd::leaf_bodies(m).front(), in_of(4) + 3 * s, val.data() + s, g.data() + s * nx,
+                                H.data() + s * nx * nx);
       interleave({&val, &g, &H});
     } else if (n == "cmm_time_variation") {
       rbd::batch::cmm_time_variation(m, B, in_of(0), in_of(1), ref.data());
@@ -488,7 +516,7 @@ TEST(Registry, RequirementsAreChecked) {
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
     int k = 0;
-    while (op.args[k].kind != ops::kFdStep) ++k;
+    while (op.args[k].kind != ops::kPositive) ++k;
     for (const char* dtype : {"float64", "float32"}) {
       rbd::Handle h(hyq, {}, 2, dtype);
       Inputs in = make_inputs(hyq, op, 2, 1, false);
@@ -504,4 +532,96 @@ TEST(Registry, RequirementsAreChecked) {
       }
     }
   }
+}
+
+// a log barrier outside its bounds: +inf and NaN derivatives in that sample's
+// coordinate, on the serial loop and the engine alike, and no overflow error
+TEST(Registry, BarriersAreInfiniteOutside) {
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  rbd::Handle serial(m), engine(m, {}, 2);
+  const int id = ops::find_op("joint_velocity_barrier");
+  Inputs in = make_inputs(m, *ops::op_table()[id].spec, 5, 4, false);
+  in.arrays[0][3 * m.nv + 1] = in.arrays[2][3 * m.nv + 1];  // sample 3: qd on its upper bound (finite: 1 % 3 != 2)
+  const long w = 1 + 2 * m.nv;
+  for (rbd::Handle* h : {&serial, &engine}) {
+    const std::vector<double> r = run<double>(*h, id, in);
+    for (long s = 0; s < 5; ++s) {
+      const std::vector<double> x = sample_of(r, w, s);
+      if (s != 3) {
+        for (double v : x) EXPECT_TRUE(std::isfinite(v)) << "sample " << s;
+        continue;
+      }
+      EXPECT_EQ(x[0], INFINITY);
+      for (int k = 0; k < m.nv; ++k) {
+        EXPECT_EQ(std::isnan(x[1 + k]), k == 1) << k;
+        EXPECT_EQ(std::isnan(x[1 + m.nv + k]), k == 1) << k;
+      }
+    }
+  }
+  // bounds out of order name both arguments and the entry
+  Inputs bad = make_inputs(m, *ops::op_table()[id].spec, 2, 4, false);
+  bad.arrays[1][m.nv + 4] = 5;  // sample 1: lower above upper
+  std::string msg;
+  try {
+    run<double>(engine, id, bad);
+  } catch (const std::invalid_argument& e) {
+    msg = e.what();
+  }
+  EXPECT_EQ(msg.rfind("lower, upper: expected lower < upper", 0), 0u) << msg;
+  EXPECT_NE(msg.find("at sample 1, flat index 4"), std::string::npos) << msg;
+}
+
+// names: a frame's index and an end effector's body are checked, and a frame
+// on the world (no body) keeps its placement on a model without joints
+TEST(Registry, NamesAreResolved) {
+  const Model hyq = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true);
+  rbd::Handle h(hyq, {}, 2);
+  const int fp = ops::find_op("frame_placement");
+  Inputs in = make_inputs(hyq, *ops::op_table()[fp].spec, 3, 1, false);
+  for (int bad : {-1, static_cast<int>(hyq.frames.size())}) {
+    in.call.choice[1] = bad;
+    std::string msg;
+    try {
+      run<double>(h, fp, in);
+    } catch (const std::invalid_argument& e) {
+      msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind("frame_name: expected a frame index in 0..", 0), 0u) << msg;
+  }
+  // the same frame through the engine and one sample at a time: its body's placement times X_body_frame
+  in.call.choice[1] = hyq.frame_index("lf_lowerleg");
+  const std::vector<double> r = run<double>(h, fp, in);
+  std::vector<double> R(9), p(3);
+  for (long s = 0; s < 3; ++s) {
+    rbd::batch::frame_placement(hyq, 1, in.arrays[0].data() + s * hyq.nq, hyq.frame_index("lf_lowerleg"), R.data(),
+                                p.data());
+    R.insert(R.end(), p.begin(), p.end());
+    EXPECT_LE(max_rel_err(sample_of(r, 12, s), R), 1e-14);
+    R.resize(9);
+  }
+  // a model without joints: a frame on the world is where the model put it
+  const Model rigid = Model::from_urdf_string(
+      "<?xml version=\"1.0\"?><robot name=\"rock\"><link name=\"a\"/><link name=\"b\"/>"
+      "<joint name=\"j\" type=\"fixed\"><parent link=\"a\"/><child link=\"b\"/><origin xyz=\"0 0 2\"/></joint>"
+      "</robot>");
+  ASSERT_EQ(rigid.nb(), 0);
+  rbd::Handle hr(rigid);
+  Inputs ri = make_inputs(rigid, *ops::op_table()[fp].spec, 2, 1, false);
+  ri.arrays[0].assign(1, 0.0);  // q has no values: a non-null pointer
+  ri.call.in[0] = ri.arrays[0].data();
+  ri.call.choice[1] = rigid.frame_index("b");
+  const std::vector<double> rr = run<double>(hr, fp, ri);
+  EXPECT_EQ(rr[11], 2.0);  // p.z of sample 0
+  EXPECT_EQ(rr[0], 1.0);   // R = I
+  // ee_pos_cost's end effector: -1 (the first leaf body) or a body index
+  const int ee = ops::find_op("ee_pos_cost");
+  Inputs ei = make_inputs(hyq, *ops::op_table()[ee].spec, 2, 1, false);
+  ei.call.choice[3] = hyq.nb();
+  std::string msg;
+  try {
+    run<double>(h, ee, ei);
+  } catch (const std::invalid_argument& e) {
+    msg = e.what();
+  }
+  EXPECT_EQ(msg.rfind("ee_joint_name: expected a body index in 0..", 0), 0u) << msg;
 }

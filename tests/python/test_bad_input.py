@@ -83,7 +83,17 @@ METHODS = {
     "quadratic_state_cost_tangent": ("x", "x_des", "Q"),
     "com_cost": ("q", "p_des", "W"),
     "momentum_cost": ("q", "qd", "h_des", "W"),
+    "joint_position_barrier": ("q", "lower", "upper"),
+    "joint_velocity_barrier": ("qd", "lower", "upper"),
+    "joint_torque_barrier": ("u", "lower", "upper"),
+    "forward_kinematics": ("q",),
+    "frame_placement": ("q",),
+    "frame_jacobian": ("q",),
+    "frame_jacobian_dot": ("q", "qd"),
+    "ee_pos_cost": ("q", "p_des", "W", "ee_offset"),
 }
+FRAME_METHODS = ("frame_placement", "frame_jacobian", "frame_jacobian_dot")
+BARRIERS = ("joint_position_barrier", "joint_velocity_barrier", "joint_torque_barrier")
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
         "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols",
@@ -91,7 +101,14 @@ KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "
         "R": "weights", "p_des": "point", "h_des": "wrench"}
 # names whose kind depends on the method
 KIND_OF = {("quadratic_state_cost", "Q"): "state_weights", ("quadratic_state_cost_tangent", "Q"): "tangent_weights",
-           ("com_cost", "W"): "point_weights", ("momentum_cost", "W"): "wrench_weights"}
+           ("com_cost", "W"): "point_weights", ("momentum_cost", "W"): "wrench_weights",
+           ("ee_pos_cost", "W"): "point_weights", ("ee_pos_cost", "ee_offset"): "point",
+           ("joint_position_barrier", "q"): "coords_q", ("joint_position_barrier", "lower"): "lower_q",
+           ("joint_position_barrier", "upper"): "upper_q",
+           ("joint_velocity_barrier", "lower"): "lower_v", ("joint_velocity_barrier", "upper"): "upper_v",
+           ("joint_torque_barrier", "lower"): "lower_v", ("joint_torque_barrier", "upper"): "upper_v"}
+BOUND_KINDS = ("lower_q", "upper_q", "lower_v", "upper_v")
+# the position barrier's q: nq coordinates, each against its bounds (no unit-quaternion check)
 
 
 def kind_of(method, name):
@@ -104,7 +121,7 @@ OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_s
             ("inverse_dynamics_gradient_bpass_dqd", "qdd"),
             ("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
             ("forward_dynamics", "f_ext"), ("inverse_dynamics_regressor", "qdd"),
-            ("inverse_dynamics_regressor_gradient", "qdd")}
+            ("inverse_dynamics_regressor_gradient", "qdd"), ("ee_pos_cost", "ee_offset")}
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
@@ -135,7 +152,11 @@ def valid_value(model, method, name, seed=0):
         return rng.uniform(0, 1, width(model, method, name))
     if kind in ("point", "wrench"):
         return rng.uniform(-1, 1, width(model, method, name))
-    if kind == "config":
+    if kind in BOUND_KINDS:  # wide bounds around any valid value, the first one infinite
+        b = np.full(width(model, method, name), 1e3 if kind.startswith("upper") else -1e3)
+        b[0] = np.inf if kind.startswith("upper") else -np.inf
+        return b
+    if kind in ("config", "coords_q"):
         return model.random_configuration(rng)
     if kind == "tangent":
         return rng.uniform(-1, 1, model.nv)
@@ -157,6 +178,10 @@ def call(rbd, method, args):
         return rbd.time_per_call("crba", iters=1, **args)
     if method in ("integrator", "integrator_gradient", "plant_step", "plant_step_gradient", "plant_step_hessian"):
         return getattr(rbd, method)(dt=0.01, integrator_type="rk4", **args)
+    if method in BARRIERS:
+        return getattr(rbd, method)(mu=0.1, **args)
+    if method in FRAME_METHODS:
+        return getattr(rbd, method)(frame_name="lf_lowerleg", **args)
     return getattr(rbd, method)(**args)
 
 
@@ -164,7 +189,9 @@ def width(model, method, name):
     return {"config": (model.nq,), "tangent": (model.nv,), "force": (model.nb, 6), "matrix": (model.nv, model.nv),
             "cols": (model.nb, 6, 6), "state": (model.nq + model.nv,), "weights": (model.nv,),
             "state_weights": (model.nq + model.nv,), "tangent_weights": (2 * model.nv,), "point": (3,),
-            "point_weights": (3,), "wrench": (6,), "wrench_weights": (6,)}[kind_of(method, name)]
+            "point_weights": (3,), "wrench": (6,), "wrench_weights": (6,), "lower_q": (model.nq,),
+            "upper_q": (model.nq,), "lower_v": (model.nv,), "upper_v": (model.nv,),
+            "coords_q": (model.nq,)}[kind_of(method, name)]
 
 
 def bad_shapes(model, method, name):
@@ -179,6 +206,8 @@ def bad_shapes(model, method, name):
         return [(nq,), (nq + nv + 1,), (2, 2, nq + nv), ()]
     if kind == "weights":
         kind = "tangent"
+    if kind in BOUND_KINDS or kind == "coords_q":
+        kind = "config" if kind.endswith("_q") else "tangent"
     if kind == "config":
         return [(nv,), (nq + 1,), (2, 2, nq), (), (nq, 1), (1, 1, nq)]
     if kind == "tangent":
@@ -214,7 +243,9 @@ def test_wrong_shape(rbd, hyq, method, arg):
     dim = {"config": f"nq={hyq.nq}", "tangent": f"nv={hyq.nv}", "force": f"nb={hyq.nb}", "matrix": f"nv={hyq.nv}",
            "cols": f"nb={hyq.nb}", "state": rf"nq\+nv={hyq.nq + hyq.nv}", "weights": f"nv={hyq.nv}",
            "state_weights": rf"nq\+nv={hyq.nq + hyq.nv}", "tangent_weights": f"2nv={2 * hyq.nv}", "point": "3=3",
-           "point_weights": "3=3", "wrench": "6=6", "wrench_weights": "6=6"}[kind_of(method, arg)]
+           "point_weights": "3=3", "wrench": "6=6", "wrench_weights": "6=6", "lower_q": f"nq={hyq.nq}",
+           "upper_q": f"nq={hyq.nq}", "lower_v": f"nv={hyq.nv}", "upper_v": f"nv={hyq.nv}",
+           "coords_q": f"nq={hyq.nq}"}[kind_of(method, arg)]
     for shape in bad_shapes(hyq, method, arg):
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)
@@ -298,7 +329,7 @@ def test_complex_with_zero_imaginary_part_is_still_rejected(rbd, hyq):
 # ------------------------------------------------------------ values
 
 
-NONFINITE_CASES = list(METHOD_ARGS)
+NONFINITE_CASES = [(m, a) for m, a in METHOD_ARGS if kind_of(m, a) not in BOUND_KINDS]  # bounds: below
 
 
 @pytest.mark.parametrize("method,arg", NONFINITE_CASES, ids=[f"{m}-{a}" for m, a in NONFINITE_CASES])
@@ -320,6 +351,33 @@ def test_nonfinite_values(rbd, hyq, method, arg):
         args[arg] = x
         with pytest.raises(ValueError, match=rf"^{arg}(\[1\])?: expected finite values"):
             call(rbd, method, args)
+
+
+@pytest.mark.parametrize("method", BARRIERS)
+def test_bad_barrier_bounds(rbd, hyq, method):
+    # NaN, an infinity on the wrong side, an empty interval: one message naming both bounds; +inf above and
+    # -inf below are no bound
+    for arg, bad in (("lower", np.nan), ("upper", np.nan), ("lower", np.inf), ("upper", -np.inf), ("lower", 2e3),
+                     ("upper", -2e3)):
+        for batched in (False, True):
+            args = valid_args(hyq, method)
+            x = np.stack([args[arg]] * 2) if batched else np.array(args[arg])
+            x.reshape(-1)[-1] = bad
+            args[arg] = x
+            where = rf"sample 1, flat index {x.shape[-1] - 1}" if batched else rf"flat index {x.shape[-1] - 1}"
+            with pytest.raises(ValueError, match=rf"^lower, upper: expected lower < upper .* at {where}$"):
+                call(rbd, method, args)
+    for arg in ("lower", "upper"):  # a finite bound beyond the input bound: named alone
+        args = valid_args(hyq, method)
+        args[arg] = np.array(args[arg])
+        args[arg][-1] = 1e160 if arg == "upper" else -1e160
+        with pytest.raises(ValueError, match=rf"^{arg}: expected values of magnitude at most 1e\+100"):
+            call(rbd, method, args)
+    for bad in (0.0, -1.0):
+        with pytest.raises(ValueError, match="^mu: expected a positive barrier weight"):
+            getattr(rbd, method)(**valid_args(hyq, method), mu=bad)
+    with pytest.raises(TypeError, match="missing required argument 'mu'"):
+        getattr(rbd, method)(**valid_args(hyq, method))
 
 
 @pytest.mark.parametrize("method", WITH_GRAVITY)

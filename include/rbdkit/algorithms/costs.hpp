@@ -19,6 +19,7 @@
 
 #include "../configuration.hpp"
 #include "centroidal.hpp"
+#include "kinematics.hpp"
 #include "mujoco_convention.hpp"
 
 namespace rbd {
@@ -100,6 +101,33 @@ RBD_HD S residual_cost_embedded(int m, const S* r, const S* W, const S* Jr, int 
 
 // --------------------------------------------------------- centroidal tracking costs
 // q (and qd) in the convention's layout and frames; the tangent blocks along its ⊕.
+
+// scratch values of ee_pos_cost: q in Pinocchio's layout (nq), the pose (6) and its gradient (6 x nv)
+RBD_HD constexpr long ee_pos_cost_scratch(int nq, int nv) { return nq + 6 + 6L * nv; }
+
+// ½ Σ W (p(q) - p_des)² for the point at `offset` (3, body frame; null: the
+// origin) on `body` (W, p_des (3)): value, grad (NX), Gauss–Newton H (NX x NX)
+// embedded as residual_cost_embedded's; the position rows of the end-effector
+// pose gradient are the residual's Jacobian
+template <typename S>
+RBD_HD void ee_pos_cost(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* p_des, const S* W, int body,
+                        const S* offset, int convention, S* value, S* grad, S* H, S* scratch) {
+  const S* qp = q;
+  S* pose = scratch + m.nq;
+  S* G = pose + 6;
+  if (convention == kMujocoConvention) {
+    configuration_from_mujoco(m, q, scratch);
+    qp = scratch;
+  }
+  const Vec3<S> o = offset ? Vec3<S>{offset[0], offset[1], offset[2]} : Vec3<S>::zero();
+  forward_kinematics(m, w, qp, static_cast<const S*>(nullptr));
+  end_effector_pose(w, body, o, pose);
+  end_effector_pose_gradient(m, w, body, o, G);
+  if (convention == kMujocoConvention) jacobian_cols_to_mujoco(m, q, G, 6);
+  S r[3];
+  for (int k = 0; k < 3; ++k) r[k] = pose[k] - p_des[k];
+  *value = residual_cost_embedded(3, r, W, G, m.nq, m.nv, grad, H);
+}
 
 // scratch values of com_cost: q in Pinocchio's layout (nq), J_com (3 x nv)
 RBD_HD constexpr long com_cost_scratch(int nq, int nv) { return nq + 3L * nv; }
@@ -191,31 +219,22 @@ RBD_HD bool momentum_cost(const ModelView<S>& m, Workspace<S>& w, const S* q, co
 // -mu Σ [log(x - lo) + log(hi - x)], skipping infinite bounds. grad (n), Hdiag (n).
 // Outside the open interval the value is +inf and that coordinate's gradient
 // and Hessian entries are NaN (a line search rejects the point; nothing is
-// silently clipped).
+// silently clipped). Branch-free (select), so that SIMD lanes may differ: an
+// infinite bound gives d = inf, whose terms mu/d and mu/d² are exactly 0.
 template <typename S>
 RBD_HD S log_barrier(int n, const S* x, const S* lo, const S* hi, S mu, S* grad, S* Hdiag) {
+  const double unbounded = 1.0 / 0.0;
+  const S zero = S(0), inf = S(1) / S(0), nan = S(0) / S(0);
   S value = S(0);
-  const S inf = S(1) / S(0);
   for (int i = 0; i < n; ++i) {
-    S g = S(0), h = S(0);
-    bool outside = false;
-    if (lo[i] > -inf) {
-      const S d = x[i] - lo[i];
-      if (!(d > S(0))) outside = true;
-      else value -= mu * slog(d), g -= mu / d, h += mu / (d * d);
-    }
-    if (hi[i] < inf) {
-      const S d = hi[i] - x[i];
-      if (!(d > S(0))) outside = true;
-      else value -= mu * slog(d), g += mu / d, h += mu / (d * d);
-    }
-    if (outside) {
-      value = inf;
-      g = S(0) / S(0);
-      h = g;
-    }
-    grad[i] = g;
-    Hdiag[i] = h;
+    const S d_lo = x[i] - lo[i], d_hi = hi[i] - x[i];
+    // inside: min(d_lo, d_hi) > 0 (two infinite bounds: inf - inf is NaN, not < 0, so d_hi)
+    const auto inside = lane_gt(select(lane_lt(d_lo - d_hi, 0.0), d_lo, d_hi), 0.0);
+    value = value - select(lane_gt(lo[i], -unbounded), mu * slog(d_lo), zero);
+    value = value - select(lane_lt(hi[i], unbounded), mu * slog(d_hi), zero);
+    value = select(inside, value, inf);  // and inf from here on
+    grad[i] = select(inside, zero - mu / d_lo + mu / d_hi, nan);
+    Hdiag[i] = select(inside, zero + mu / (d_lo * d_lo) + mu / (d_hi * d_hi), nan);
   }
   return value;
 }

@@ -13,6 +13,7 @@
 #pragma once
 
 #include "../config.hpp"
+#include "../spatial.hpp"
 
 namespace rbd {
 namespace ops {
@@ -70,7 +71,12 @@ enum ArgKind : unsigned char {
   kChoice,         // one of `choices` by name (default index: `value`)
   kIntegrator,     // an integrator by name (integrator_from_name; default index: `value`)
   kConvention,     // an output convention by name (convention_from_name; default index: `value`)
-  kFdStep,         // a finite-difference step: finite, > 0 (default: `value`)
+  kPositive,       // a finite real > 0 (default: `value`); `choices[0]` says what it is ("barrier weight")
+  kFrame,          // a frame by name (required; an OpCall holds its index in Model::frames). The kernel gets
+                   // the frame's body in choice[k] (-1: the world) and X_body_frame in in[k] (12 values:
+                   // R row-major, then p): resolve_names
+  kEndEffector,    // a joint by name whose body is an end effector (rbd::end_effector_bodies; an OpCall holds
+                   // the body, -1: the first leaf body, the default). The kernel gets the body in choice[k]
 };
 
 // the value checks of an array, one pass over its values
@@ -80,6 +86,8 @@ enum ValueCheck : unsigned char {
                    // convention when it has a kConvention parameter)
   kMujocoConfiguration,  // the same in MuJoCo's layout (quaternions w x y z), whatever the op's convention
   kWeights,        // finite, non-negative (a cost's diagonal weights)
+  kLowerBound,     // a lower bound: finite or -inf (no bound)
+  kUpperBound,     // an upper bound: finite or +inf, above the argument before it (a kLowerBound) entry by entry
 };
 
 struct ArgSpec {
@@ -100,6 +108,22 @@ constexpr ArgSpec optional_array(const char* name, Shape s, ValueCheck c = kFini
 constexpr ArgSpec real(const char* name, double def) { return {name, kReal, {0, {0, 0, 0}}, kFiniteValues, def, nullptr}; }
 constexpr ArgSpec param(const char* name, ArgKind kind, double def = 0, const char* const* choices = nullptr) {
   return {name, kind, {0, {0, 0, 0}}, kFiniteValues, def, choices};
+}
+// a frame by name, and a joint by name whose body is an end effector (default: the first leaf body)
+constexpr ArgSpec frame(const char* name) {
+  return {name, kFrame, {1, {12, 0, 0}}, kFiniteValues, __builtin_nan(""), nullptr};  // required
+}
+constexpr ArgSpec end_effector(const char* name) { return {name, kEndEffector, {0, {0, 0, 0}}, kFiniteValues, -1, nullptr}; }
+// X_body_frame from a kFrame argument's 12 values
+template <typename S> RBD_HD Transform<S> frame_transform(const S* x) {
+  Transform<S> X;
+  for (int k = 0; k < 9; ++k) X.R.m[k] = x[k];
+  X.p = {x[9], x[10], x[11]};
+  return X;
+}
+// a positive real; `what` names it in messages ("expected a positive <what>")
+constexpr ArgSpec positive(const char* name, double def, const char* const* what) {
+  return {name, kPositive, {0, {0, 0, 0}}, kFiniteValues, def, what};
 }
 
 struct OutSpec {
@@ -134,6 +158,13 @@ enum OpScratch : unsigned char {
   kScratchCmmFd,           // 6 nv² + dccrba_fd_scratch(nq, nv)
   kScratchComCost,         // com_cost_scratch(nq, nv)
   kScratchMomentumCost,    // momentum_cost_scratch(nq, nv)
+  kScratchEePosCost,       // ee_pos_cost_scratch(nq, nv)
+};
+
+// what an operation's outputs may hold
+enum OpOutputs : unsigned char {
+  kFiniteOutputs,   // finite values: an inf or a NaN is an overflow, reported as an error
+  kInfiniteOutside, // +inf and NaN where an input is outside the domain (a log barrier outside its bounds)
 };
 
 // what an operation needs of the model
@@ -157,6 +188,7 @@ struct OpSpec {
   OpScratch scratch;
   OpFailure failure;
   OpModel model = kAnyModel;
+  OpOutputs outputs = kFiniteOutputs;
 };
 
 // one sample's call, indexed by argument (the spec's order): an array's

@@ -22,6 +22,7 @@
 #include "../algorithms/energy.hpp"
 #include "../algorithms/fdsva_so.hpp"
 #include "../algorithms/integrators.hpp"
+#include "../algorithms/kinematics.hpp"
 #include "../algorithms/minv.hpp"
 #include "../algorithms/mujoco_convention.hpp"
 #include "../algorithms/regressor.hpp"
@@ -39,6 +40,9 @@ constexpr double kGravity = -9.81;  // the default gravity (m/s², along world z
 constexpr double kRequired = __builtin_nan("");  // a parameter without default
 inline constexpr const char* kWrtQV[] = {"q", "v", nullptr};
 inline constexpr const char* kWrtFromTo[] = {"from", "to", nullptr};
+inline constexpr const char* kFdStepName[] = {"finite-difference step", nullptr};
+inline constexpr const char* kBarrierWeightName[] = {"barrier weight", nullptr};
+inline constexpr const char* kReferenceFrames[] = {"LOCAL", "WORLD", "LOCAL_WORLD_ALIGNED", nullptr};  // ReferenceFrame
 
 // ---------------------------------------------------------------- dynamics (rnea, crba, minv, aba)
 
@@ -719,7 +723,7 @@ struct DccrbaFd {
       "dccrba_fd", "dccrba", "centroidal",
       "dccrba by central finite differences of ccrba through integrate (step eps): a cross-check of the analytic "
       "dccrba, not for production. dA (6, nv, nv).",
-      2, {array("q", shape(kNq), kConfiguration), param("eps", kFdStep, 1e-5)},
+      2, {array("q", shape(kNq), kConfiguration), positive("eps", 1e-5, kFdStepName)},
       1, {{"dA", shape(6, kNv, kNv)}}, 0b1, 0, kLinear, kScratchDccrbaFd, kNoMass};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return dccrba_fd(m, w, a.in[0], a.real[1], a.out[0], a.scratch);
@@ -730,7 +734,7 @@ struct CmmTimeVariationFd {
   static constexpr OpSpec spec = {
       "cmm_time_variation_fd", "dccrba", "centroidal",
       "cmm_time_variation from dccrba_fd (finite differences, step eps): a cross-check only. Ȧ (6, nv).",
-      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), param("eps", kFdStep, 1e-5)},
+      3, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), positive("eps", 1e-5, kFdStepName)},
       1, {{"Adot", shape(6, kNv)}}, 0b1, 0, kLinear, kScratchCmmFd, kNoMass};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return cmm_time_variation_fd(m, w, a.in[0], a.in[1], a.real[2], a.out[0], a.scratch);
@@ -840,6 +844,96 @@ struct ForwardDynamicsParameterGradient {
   }
 };
 
+// ---------------------------------------------------------------- kinematics (algorithms/kinematics.hpp)
+// Placements X_world_* as (R (3, 3), p (3,)), x_world = R x + p. Frame Jacobians in Pinocchio's reference
+// frames: "LOCAL" (the frame's velocity in its own axes), "WORLD" (at the world origin, world axes),
+// "LOCAL_WORLD_ALIGNED" (the frame origin's velocity, world axes); rows [linear; angular].
+
+// R (3 x 3, row-major) and p (3) of a placement
+template <typename S> RBD_HD void store_placement(const Transform<S>& X, S* R, S* p) {
+  if (R)
+    for (int k = 0; k < 9; ++k) R[k] = X.R.m[k];
+  if (p) p[0] = X.p.x, p[1] = X.p.y, p[2] = X.p.z;
+}
+
+struct ForwardKinematics {
+  static constexpr OpSpec spec = {
+      "forward_kinematics", "kinematics", "kinematics",
+      "Placements X_world_body of every body: (R (nb, 3, 3), p (nb, 3)), x_world = R x_body + p; a body's frame is "
+      "its joint's child frame.",
+      1, {array("q", shape(kNq), kConfiguration)},
+      2, {{"R", shape(kNb, 3, 3)}, {"p", shape(kNb, 3)}}, 0b11, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    for (int i = 0; i < m.nb; ++i)
+      store_placement(w.Xw[i], a.out[0] ? a.out[0] + 9 * i : nullptr, a.out[1] ? a.out[1] + 3 * i : nullptr);
+    return true;
+  }
+};
+
+struct FramePlacement {
+  static constexpr OpSpec spec = {
+      "frame_placement", "kinematics", "kinematics",
+      "Placement of a named frame (link or joint, fixed ones included) in the world: (R (3, 3), p (3,)), x_world = "
+      "R x_frame + p (Pinocchio's data.oMf).",
+      2, {array("q", shape(kNq), kConfiguration), frame("frame_name")},
+      2, {{"R", shape(3, 3)}, {"p", shape(3)}}, 0b11, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    store_placement(frame_placement(w, a.choice[1], frame_transform(a.in[1])), a.out[0], a.out[1]);
+    return true;
+  }
+};
+
+struct FrameJacobian {
+  static constexpr OpSpec spec = {
+      "frame_jacobian", "kinematics", "kinematics",
+      "Geometric Jacobian J (6, nv) of a named frame, rows [linear; angular], in reference_frame \"LOCAL\", "
+      "\"WORLD\" or \"LOCAL_WORLD_ALIGNED\" (Pinocchio's getFrameJacobian): J·v is the frame's velocity in that "
+      "frame.",
+      3, {array("q", shape(kNq), kConfiguration), frame("frame_name"), param("reference_frame", kChoice, 0, kReferenceFrames)},
+      1, {{"J", shape(6, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    frame_jacobian(m, w, a.choice[1], frame_transform(a.in[1]), a.choice[2], a.out[0]);
+    return true;
+  }
+};
+
+struct FrameJacobianDot {
+  static constexpr OpSpec spec = {
+      "frame_jacobian_dot", "kinematics", "kinematics",
+      "Time variation dJ/dt (6, nv) of frame_jacobian(q, frame_name, reference_frame) along qd (Pinocchio's "
+      "getFrameJacobianTimeVariation): the frame's acceleration in that frame is J·qdd + dJ·qd.",
+      4,
+      {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), frame("frame_name"),
+       param("reference_frame", kChoice, 0, kReferenceFrames)},
+      1, {{"dJ", shape(6, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], a.in[1]);
+    frame_jacobian_dot(m, w, a.choice[2], frame_transform(a.in[2]), a.choice[3], a.out[0]);
+    return true;
+  }
+};
+
+struct EePosCost {
+  static constexpr OpSpec spec = {
+      "ee_pos_cost", "ee_pos_cost", "costs",
+      "½ Σ W (p_ee(q) - p_des)² for the end effector (the named joint's body; default the first leaf body) at "
+      "tool point ee_offset (3,) in its frame (default zero): (value, grad (nq + nv,), Gauss–Newton H (nq + nv, "
+      "nq + nv)), tangent blocks embedded as in com_cost.",
+      6,
+      {array("q", shape(kNq), kConfiguration), array("p_des", shape(3)), array("W", shape(3), kWeights),
+       end_effector("ee_joint_name"), optional_array("ee_offset", shape(3)), param("output_convention", kConvention, 0)},
+      3, {{"value", scalar()}, {"grad", shape(kNx)}, {"H", shape(kNx, kNx)}}, 0b111, 0, kLinear, kScratchEePosCost,
+      kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    ee_pos_cost(m, w, a.in[0], a.in[1], a.in[2], a.choice[3], a.in[4], a.choice[5], a.out[0], a.out[1], a.out[2],
+                a.scratch);
+    return true;
+  }
+};
+
 // ---------------------------------------------------------------- costs (the plant layer: algorithms/costs.hpp)
 // (value, gradient, Hessian) per knot point, NX = nq + nv. Weights are diagonal, given as vectors of
 // non-negative values. output_convention="mujoco": x, q, qd in MuJoCo's qpos/qvel layout and frames, the
@@ -920,6 +1014,36 @@ struct MomentumCost {
 };
 #undef RBD_COST_OUTS
 
+// the log barriers: -mu Σ [log(x - lower) + log(upper - x)] over the finite bounds, (value, grad, Hessian
+// diagonal); outside the open interval the value is +inf and that coordinate's derivatives NaN
+template <int Which> struct JointBarrier {
+  static constexpr int kN = Which == 0 ? kNq : kNv;
+  static constexpr OpSpec spec = {
+      Which == 0 ? "joint_position_barrier" : Which == 1 ? "joint_velocity_barrier" : "joint_torque_barrier",
+      "barriers", "costs",
+      Which == 0 ? "Log barrier on q (nq,) with bounds lower, upper (nq,) in the same layout (infinite ones add "
+                   "nothing): (value, grad (nq,), Hessian diagonal (nq,)); outside the open interval the value is "
+                   "+inf and that coordinate's derivatives NaN."
+      : Which == 1 ? "Log barrier on qd (nv,) with bounds lower, upper (nv,) (infinite ones add nothing): (value, "
+                     "grad (nv,), Hessian diagonal (nv,)); outside the open interval +inf and NaN derivatives."
+                   : "Log barrier on u (nv,) with bounds lower, upper (nv,) (infinite ones add nothing): (value, "
+                     "grad (nv,), Hessian diagonal (nv,)); outside the open interval +inf and NaN derivatives.",
+      5,
+      {array(Which == 0 ? "q" : Which == 1 ? "qd" : "u", shape(kN)), array("lower", shape(kN), kLowerBound),
+       array("upper", shape(kN), kUpperBound), positive("mu", kRequired, kBarrierWeightName),
+       param("output_convention", kConvention, 0)},
+      3, {{"value", scalar()}, {"grad", shape(kN)}, {"Hdiag", shape(kN)}}, 0b111, 0, kLinear, kNoScratch,
+      kNotPositiveDefinite, kAnyModel, kInfiniteOutside};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    a.out[0][0] = log_barrier(Which == 0 ? m.nq : m.nv, a.in[0], a.in[1], a.in[2], a.real[3], a.out[1], a.out[2]);
+    return true;
+  }
+};
+using JointPositionBarrier = JointBarrier<0>;
+using JointVelocityBarrier = JointBarrier<1>;
+using JointTorqueBarrier = JointBarrier<2>;
+
+
 // ---------------------------------------------------------------- the list
 
 template <typename... Op> struct OpList {
@@ -946,7 +1070,9 @@ using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crb
                       InverseDynamicsGradientFpassDqd, InverseDynamicsGradientBpassDq,
                       InverseDynamicsGradientBpassDqd, DccrbaFd, CmmTimeVariationFd,
                       InverseDynamicsRegressorGradient, ForwardDynamicsParameterGradient, QuadraticStateCost,
-                      QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost>;
+                      QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost, JointPositionBarrier,
+                      JointVelocityBarrier, JointTorqueBarrier, ForwardKinematics, FramePlacement, FrameJacobian,
+                      FrameJacobianDot, EePosCost>;
 
 }  // namespace ops
 }  // namespace rbd

@@ -36,8 +36,9 @@ struct OpCall {
   long B = 1;                       // samples
   const void* in[kMaxArgs] = {};    // arrays: (B x shape) when batched[k], else (shape); null: absent
   bool batched[kMaxArgs] = {};
-  double real[kMaxArgs] = {};       // kReal, kTimeStep, kFdStep
-  int choice[kMaxArgs] = {};        // kFlag (0/1), kChoice, kIntegrator, kConvention
+  double real[kMaxArgs] = {};       // kReal, kTimeStep, kPositive
+  int choice[kMaxArgs] = {};        // kFlag (0/1), kChoice, kIntegrator, kConvention, kFrame (the frame's
+                                    // index), kEndEffector (the body, -1: the first leaf)
   void* out[kMaxOutputs] = {};      // (B x shape) or null
 };
 
@@ -67,6 +68,13 @@ void check_bounded(const double* x, long samples, long n, const char* name, bool
 // whose kernel fails (naming the joint: throw_not_positive_definite) and
 // for non-finite outputs. Inputs are not checked here (check_call).
 void run_serial(const Model& m, const OpEntry& op, const OpCall& c, Workspace<double>& w, double* scratch);
+
+// names resolved for the kernels (after check_call): a kFrame argument's
+// index becomes its body (choice) and X_body_frame (in: 12 values of T,
+// unbatched, held in `frames`, which must outlive the call), a kEndEffector
+// -1 the first leaf body. takes_names: whether an operation has such arguments
+bool takes_names(const OpSpec& op);
+template <typename T> OpCall resolve_names(const Model& m, const OpSpec& op, const OpCall& c, std::vector<T>& frames);
 
 // a failed sample: the error the operation's OpFailure names (q: that
 // sample's configuration or state, nq values first)
