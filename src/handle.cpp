@@ -186,7 +186,7 @@ void Handle::dispatch(int op, const ops::OpCall& call) {
     if (e.spec->failure == ops::kNoMass) ops::throw_failure(model_, *e.spec, nullptr, -1);
     const size_t bytes = dtype_ == "float32" ? sizeof(float) : sizeof(double);
     for (int o = 0; o < e.spec->n_out; ++o)
-      if (call.out[o]) std::memset(call.out[o], 0, bytes * call.B * ops::out_values(e.spec->out[o], model_));
+      if (call.out[o]) std::memset(call.out[o], 0, bytes * call.B * ops::out_values(e.spec->out[o], model_, call.n_ee));
     return;
   }
   // the engine for float32 and for batches; one float64 sample on the serial
@@ -204,11 +204,11 @@ void Handle::dispatch(int op, const ops::OpCall& call) {
   for (int k = 0; k < spec.n_args; ++k)
     if (call.in[k]) {
       const float* x = static_cast<const float*>(call.in[k]);
-      in[k].assign(x, x + (call.batched[k] ? call.B : 1) * ops::arg_values(spec.args[k], model_));
+      in[k].assign(x, x + (call.batched[k] ? call.B : 1) * ops::arg_values(spec.args[k], model_, call.n_ee));
       d.in[k] = in[k].data();
     }
   for (int o = 0; o < spec.n_out; ++o)
-    if (call.out[o]) out[o].resize(call.B * ops::out_values(spec.out[o], model_)), d.out[o] = out[o].data();
+    if (call.out[o]) out[o].resize(call.B * ops::out_values(spec.out[o], model_, call.n_ee)), d.out[o] = out[o].data();
   ops::run_serial(model_, e, d, w, op_scratch_.data());
   for (int o = 0; o < spec.n_out; ++o)
     if (call.out[o]) std::copy(out[o].begin(), out[o].end(), static_cast<float*>(call.out[o]));

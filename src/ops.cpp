@@ -166,8 +166,8 @@ int find_op(const std::string& name) {
   return -1;
 }
 
-long arg_values(const ArgSpec& a, const Model& m) { return values_of(a.shape, m.nq, m.nv, m.nb()); }
-long out_values(const OutSpec& o, const Model& m) { return values_of(o.shape, m.nq, m.nv, m.nb()); }
+long arg_values(const ArgSpec& a, const Model& m, int n_ee) { return values_of(a.shape, m.nq, m.nv, m.nb(), n_ee); }
+long out_values(const OutSpec& o, const Model& m, int n_ee) { return values_of(o.shape, m.nq, m.nv, m.nb(), n_ee); }
 
 long scratch_values(const OpSpec& op, const Model& m) {
   switch (op.scratch) {
@@ -250,6 +250,13 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
           bad_param(a, "expected a frame index in 0.." + std::to_string(m.frames.size() - 1) + ", got " +
                            std::to_string(c.choice[k]));
         break;
+      case kEndEffectors:
+        if (c.n_ee < 1 || !c.ee) bad_param(a, "expected at least one end effector, got none");
+        for (int e = 0; e < c.n_ee; ++e)
+          if (c.ee[e] < 0 || c.ee[e] >= m.nb())
+            bad_param(a, "body index " + std::to_string(c.ee[e]) + " out of range [0, " + std::to_string(m.nb()) +
+                             ")");
+        break;
       case kEndEffector:
         if (c.choice[k] < -1 || c.choice[k] >= m.nb())
           bad_param(a, "expected a body index in 0.." + std::to_string(m.nb() - 1) + " (-1: the first leaf body), got " +
@@ -264,7 +271,7 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
     const ArgSpec& a = op.args[k];
     if ((a.kind != kArray && a.kind != kOptionalArray) || !c.in[k]) continue;
     const T* x = static_cast<const T*>(c.in[k]);
-    const long n = arg_values(a, m), samples = c.batched[k] ? c.B : 1;
+    const long n = arg_values(a, m, c.n_ee), samples = c.batched[k] ? c.B : 1;
     if (a.check == kFiniteValues || a.check == kWeights) {
       if (!finite_values(x, n * samples))
         for (long s = 0; s < samples; ++s)
@@ -345,7 +352,7 @@ template <typename T> void check_outputs(const Model& m, const OpSpec& op, const
   for (int o = 0; o < op.n_out; ++o) {
     if (!c.out[o]) continue;
     const T* x = static_cast<const T*>(c.out[o]);
-    const long n = c.B * out_values(op.out[o], m);
+    const long n = c.B * out_values(op.out[o], m, c.n_ee);
     bool ok = true;
     for (long k = 0; k < n; ++k) ok &= std::isfinite(x[k]);
     if (ok) continue;
@@ -370,10 +377,12 @@ void run_serial(const Model& m, const OpEntry& e, const OpCall& c, Workspace<dou
     a.in[k] = static_cast<const double*>(c.in[k]);
     a.real[k] = c.real[k];
     a.choice[k] = c.choice[k];
-    in_step[k] = c.in[k] && c.batched[k] ? arg_values(op.args[k], m) : 0;
+    in_step[k] = c.in[k] && c.batched[k] ? arg_values(op.args[k], m, c.n_ee) : 0;
   }
-  for (int o = 0; o < op.n_out; ++o) out_step[o] = out_values(op.out[o], m);
+  for (int o = 0; o < op.n_out; ++o) out_step[o] = out_values(op.out[o], m, c.n_ee);
   a.scratch = scratch;
+  a.ee = c.ee;
+  a.n_ee = c.n_ee;
   for (long s = 0; s < c.B; ++s) {
     for (int k = 0; k < op.n_args; ++k)
       if (c.in[k]) a.in[k] = static_cast<const double*>(c.in[k]) + s * in_step[k];

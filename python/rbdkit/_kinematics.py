@@ -43,10 +43,10 @@ from ._checks import Batch, as_real_array
 
 
 class KinematicsMixin:
-    """The end-effector methods of RBD (see the module doc for shapes and
-    conventions). forward_kinematics, frame_placement, frame_jacobian and
-    frame_jacobian_dot are registered operations
-    (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself."""
+    """end_effector_pose_hessian (dual numbers) and osc_inertia (see the
+    module doc for shapes and conventions). The other kinematics operations
+    are registered operations (include/rbdkit/ops/registry.hpp), bound by
+    rbdkit.RBD itself."""
 
     # ---- argument helpers
     def _ee_bodies(self, ee_joint_names, name="ee_joint_names"):
@@ -87,22 +87,6 @@ class KinematicsMixin:
         return b.ret(out)
 
     # ---- end effectors
-    def end_effector_pose(self, q, ee_joint_names=None, ee_offsets=None):
-        """Pose (n_ee, 6) = [x, y, z, roll, pitch, yaw] of each end effector
-        (see the module doc). ee_joint_names: the joints whose bodies are the
-        end effectors (default: the leaf bodies, in body order); ee_offsets:
-        tool points in the end-effector body frames, (3,) for all, (n_ee, 3)
-        or (B, n_ee, 3); default zero."""
-        return self._ee_call(_core.end_effector_pose, q, ee_joint_names, ee_offsets, "ee_offsets", (6,))
-
-    def end_effector_pose_gradient(self, q, ee_joint_names=None, ee_offsets=None):
-        """Analytic gradient (n_ee, 6, nv) of end_effector_pose with respect
-        to tangent perturbations: G[e, r, k] = ∂pose[e, r]/∂δ_k. Position rows
-        are the tool point's world-frame Jacobian; rpy rows E(rpy)⁻¹ times the
-        world angular Jacobian, E mapping rpy rates to angular velocity."""
-        return self._ee_call(_core.end_effector_pose_gradient, q, ee_joint_names, ee_offsets, "ee_offsets",
-                             (6, self.nv))
-
     def end_effector_pose_hessian(self, q, offsets=None, ee_joint_names=None):
         """Hessian (n_ee, 6, nv, nv) of end_effector_pose, H[e, r, j, k] =
         ∂gradient[e, r, k]/∂δ_j, by forward-mode dual numbers through the
@@ -110,15 +94,7 @@ class KinematicsMixin:
         symmetric within free-flyer and spherical joints (see the module doc).
         Note the argument order: offsets before ee_joint_names."""
         return self._ee_call(_core.end_effector_pose_hessian, q, ee_joint_names, offsets, "offsets",
-                             (6, self.nv, self.nv), False)
-
-    def end_effector_pose_hessian_analytic(self, q, offsets=None, ee_joint_names=None):
-        """end_effector_pose_hessian in closed form: for support-chain columns
-        s_j, s_k with j an ancestor of k (or in the same joint), ∂s_k/∂δ_j =
-        s_j × s_k, and the tool point moves with s_j. Equal to the dual-number
-        Hessian to rounding."""
-        return self._ee_call(_core.end_effector_pose_hessian, q, ee_joint_names, offsets, "offsets",
-                             (6, self.nv, self.nv), True)
+                             (6, self.nv, self.nv))
 
     # ---- operational space
     def osc_inertia(self, q, ee_joint_names=None, ee_offsets=None):

@@ -1,7 +1,7 @@
 // rbdkit._core — bindings of the kinematics family (kinematics_api.hpp).
 //
-// The end-effector operations, which are not registered operations yet (the
-// others: ops/registry.hpp, bind_ops.cpp). Thin, like bindings.cpp: the
+// end_effector_pose_hessian (dual numbers) and osc_inertia, which are not
+// registered operations (the others: ops/registry.hpp, bind_ops.cpp). Thin, like bindings.cpp: the
 // Python layer (python/rbdkit/_kinematics.py) checks shapes and resolves
 // names once per call; these functions take
 // C-contiguous float64 arrays with the batch on axis 0, check values in C++
@@ -43,33 +43,14 @@ void bind_kinematics(nb::module_& m) {
   m.def("end_effector_bodies", &rbd::end_effector_bodies, "model"_a, "joint_names"_a);
 
   // ---- end effectors: bodies (n_ee), offsets (B x n_ee x 3) or None
-  m.def("end_effector_pose",
-        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
-           Out pose) {
-          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
-          nb::gil_scoped_release r;
-          rbd::batch::end_effector_pose(md, batch_of(q), q.data(), ee, pose.data());
-        },
-        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "pose"_a);
-  m.def("end_effector_pose_gradient",
-        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
-           Out G) {
-          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
-          nb::gil_scoped_release r;
-          rbd::batch::end_effector_pose_gradient(md, batch_of(q), q.data(), ee, G.data());
-        },
-        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "G"_a);
   m.def("end_effector_pose_hessian",
         [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
-           bool analytic, Out H) {
+           Out H) {
           const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
           nb::gil_scoped_release r;
-          if (analytic)
-            rbd::batch::end_effector_pose_hessian_analytic(md, batch_of(q), q.data(), ee, H.data());
-          else
-            rbd::batch::end_effector_pose_hessian(md, batch_of(q), q.data(), ee, H.data());
+          rbd::batch::end_effector_pose_hessian(md, batch_of(q), q.data(), ee, H.data());
         },
-        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "analytic"_a, "H"_a);
+        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "H"_a);
   m.def("osc_inertia",
         [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
            Out Lambda) {

@@ -62,6 +62,7 @@ std::string dim_name(int d) {
     case ops::k2Nv: return "2nv";
     case ops::k3Nv: return "3nv";
     case ops::k10Nb: return "10nb";
+    case ops::kNee: return "n_ee";
     default: return std::to_string(d);
   }
 }
@@ -95,7 +96,7 @@ struct OpFn {
 
 // keeps the converted arrays of one call alive
 struct Refs {
-  PyObject* p[3 * ops::kMaxArgs + ops::kMaxOutputs] = {};  // per array: as given, float64, rounded
+  PyObject* p[4 * ops::kMaxArgs + ops::kMaxOutputs] = {};  // per array: as given, float64, rounded, repeated
   int n = 0;
   ~Refs() {
     for (int k = 0; k < n; ++k) Py_XDECREF(p[k]);
@@ -185,8 +186,45 @@ int as_choice(PyObject* o, const char* name, const char* const* choices) {
 }
 
 // a parameter of the spec into the call; false with an exception set
-bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, double bound) {
+bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k, ops::OpCall& c, double bound,
+                 std::vector<int>& ee) {
   switch (a.kind) {
+    case ops::kEndEffectors: {  // None (the leaf bodies), a joint name, or a list of them
+      try {
+        if (o == Py_None) {
+          if (m.nb() == 0) throw std::invalid_argument("the model has no joints (nq = 0), so it has no end effector");
+          ee = rbd::leaf_bodies(m);
+        } else {
+          std::vector<std::string> names;
+          if (PyUnicode_Check(o)) {
+            names.push_back(PyUnicode_AsUTF8(o));
+          } else if (PyList_Check(o) || PyTuple_Check(o)) {
+            for (Py_ssize_t j = 0; j < PySequence_Fast_GET_SIZE(o); ++j) {
+              PyObject* n = PySequence_Fast_GET_ITEM(o, j);
+              if (!PyUnicode_Check(n)) {
+                fail(PyExc_TypeError, std::string(a.name) + ": expected joint names (str), got an entry of type " +
+                                          type_name(n));
+                return false;
+              }
+              names.push_back(PyUnicode_AsUTF8(n));
+            }
+          } else {
+            fail(PyExc_TypeError, std::string(a.name) + ": expected a list of joint names (str), got " + type_name(o));
+            return false;
+          }
+          ee = rbd::end_effector_bodies(m, names);
+        }
+      } catch (const std::exception& e) {
+        std::string msg = e.what();  // end_effector_bodies names the argument ee_joint_names
+        const std::string own = "ee_joint_names: ";
+        if (msg.rfind(own, 0) == 0) msg = msg.substr(own.size());
+        fail(PyExc_ValueError, std::string(a.name) + ": " + msg);
+        return false;
+      }
+      c.ee = ee.data();
+      c.n_ee = static_cast<int>(ee.size());
+      return true;
+    }
     case ops::kFrame:
     case ops::kEndEffector: {
       if (a.kind == ops::kEndEffector && o == Py_None) {
@@ -312,14 +350,17 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
 
   // ---- parameters (cheap checks first), then the arrays: dtype, shape, batch axis
   ops::OpCall c;
+  std::vector<int> ee;  // the end effectors' bodies (a kEndEffectors argument)
   for (int k = 0; k < op.n_args; ++k) {
     const ops::ArgSpec& a = op.args[k];
     if (is_array(a)) continue;
-    if (!slot[k]) {
+    if (!slot[k] && a.kind == ops::kEndEffectors) {
+      if (!parse_param(m, a, Py_None, k, c, 0, ee)) return nullptr;
+    } else if (!slot[k]) {
       if (std::isnan(a.value))
         return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
       default_param(a, k, c);
-    } else if (!parse_param(m, a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput)) {
+    } else if (!parse_param(m, a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput, ee)) {
       return nullptr;
     }
   }
@@ -344,13 +385,35 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     const int r = a.shape.rank, nd = PyArray_NDIM(arr);
     const npy_intp* d = PyArray_DIMS(arr);
     npy_intp want[ops::kMaxRank];
-    for (int j = 0; j < r; ++j) want[j] = ops::extent(a.shape.d[j], m.nq, m.nv, m.nb());
+    for (int j = 0; j < r; ++j) want[j] = ops::extent(a.shape.d[j], m.nq, m.nv, m.nb(), c.n_ee);
     bool batched = false, ok = false;
     if (nd == r || nd == r + 1) {
       const int o0 = nd - r;
       ok = true;
       for (int j = 0; j < r; ++j) ok &= d[o0 + j] == want[j];
       batched = nd == r + 1;
+    }
+    if (!ok && r > 1 && a.shape.d[0] == ops::kNee && nd == r - 1) {  // one row for every end effector
+      bool tail = true;
+      for (int j = 1; j < r; ++j) tail &= d[j - 1] == want[j];
+      if (tail) {
+        PyObject* rep = PyArray_SimpleNew(r, want, PyArray_TYPE(arr));
+        if (!rep) return nullptr;
+        refs.keep(rep);
+        const size_t row = PyArray_NBYTES(arr);
+        char* dst = static_cast<char*>(PyArray_DATA(reinterpret_cast<PyArrayObject*>(rep)));
+        for (npy_intp e = 0; e < want[0]; ++e) std::memcpy(dst + e * row, PyArray_DATA(arr), row);
+        arr = reinterpret_cast<PyArrayObject*>(rep);
+        if (wide) wide = arr;
+        ok = true;
+      }
+    }
+    if (!ok && r > 1 && a.shape.d[0] == ops::kNee) {  // one row for all, one per end effector, or a batch of them
+      std::string tail;
+      for (int j = 1; j < r; ++j) tail += (j > 1 ? ", " : "") + std::to_string(want[j]);
+      return fail(PyExc_ValueError, std::string(a.name) + ": expected shape (" + tail + (r == 2 ? ",)" : ")") +
+                                        ", (n_ee, " + tail + ") or (B, n_ee, " + tail + ") with n_ee=" +
+                                        std::to_string(want[0]) + ", got shape " + tuple_str(d, nd));
     }
     if (!ok) {
       std::string desc;
@@ -374,7 +437,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     // infinite: ops::check_call checks them after rounding)
     if (wide && a.check != ops::kLowerBound && a.check != ops::kUpperBound) {
       try {
-        const long n = ops::arg_values(a, m);
+        const long n = ops::arg_values(a, m, c.n_ee);
         ops::check_bounded(static_cast<const double*>(PyArray_DATA(wide)), batched ? d[0] : 1, n, a.name, batched,
                            rbd::kMaxInputF32);
       } catch (const std::exception& e) {
@@ -401,7 +464,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     npy_intp dims[ops::kMaxRank + 1];
     int nd = 0;
     if (B >= 0) dims[nd++] = B;
-    for (int j = 0; j < op.out[o].shape.rank; ++j) dims[nd++] = ops::extent(op.out[o].shape.d[j], m.nq, m.nv, m.nb());
+    for (int j = 0; j < op.out[o].shape.rank; ++j) dims[nd++] = ops::extent(op.out[o].shape.d[j], m.nq, m.nv, m.nb(), c.n_ee);
     PyObject* a = PyArray_SimpleNew(nd, dims, type);
     if (!a) return nullptr;
     outs[o] = refs.keep(a);
@@ -473,7 +536,7 @@ std::string signature_doc(const ops::OpSpec& op) {
     else if (a.kind == ops::kChoice) s += std::string("='") + a.choices[static_cast<int>(a.value)] + "'";
     else if (a.kind == ops::kIntegrator) s += "='euler'";
     else if (a.kind == ops::kConvention) s += "='pinocchio'";
-    else if (a.kind == ops::kEndEffector) s += "=None";
+    else if (a.kind == ops::kEndEffector || a.kind == ops::kEndEffectors) s += "=None";
   }
   return s + ")\n\n" + op.doc;
 }
@@ -527,11 +590,11 @@ void bind_ops(nb::module_& m) {
   if (!op_type()) throw nb::python_error();
 
   // [(name, algorithm, family, doc, [(argument, kind, default)])] in registry
-  // order; kind: array, optional, real, dt, flag, choice, integrator, positive, frame, joint,
+  // order; kind: array, optional, real, dt, flag, choice, integrator, positive, frame, joint, joints,
   // convention; default: None where there is none (a required parameter)
   m.def("registered_operations", [] {
     static const char* kinds[] = {"array", "optional", "real", "dt", "flag", "choice", "integrator", "convention",
-                                  "positive", "frame", "joint"};
+                                  "positive", "frame", "joint", "joints"};
     nb::list out;
     for (const ops::OpEntry& e : ops::op_table()) {
       const ops::OpSpec& op = *e.spec;

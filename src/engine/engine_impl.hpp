@@ -286,7 +286,7 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
   job.active = static_cast<int>(std::min<long>(e.threads, job.packs));
   long values = ops::scratch_values(op, m);
   for (int k = 0; k < op.n_args; ++k) {
-    const long w = ops::arg_values(op.args[k], m);
+    const long w = ops::arg_values(op.args[k], m, c.n_ee);
     // arrays, and a frame's placement (ops::resolve_names), packed per lane
     if ((op.args[k].kind == ops::kArray || op.args[k].kind == ops::kOptionalArray || op.args[k].kind == ops::kFrame) &&
         c.in[k]) {
@@ -296,8 +296,10 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
     job.params.real[k] = P(static_cast<T>(c.real[k]));
     job.params.choice[k] = c.choice[k];
   }
+  job.params.ee = c.ee;
+  job.params.n_ee = c.n_ee;
   for (int o = 0; o < op.n_out; ++o) {
-    job.out[o] = {static_cast<T*>(c.out[o]), ops::out_values(op.out[o], m)};
+    job.out[o] = {static_cast<T*>(c.out[o]), ops::out_values(op.out[o], m, c.n_ee)};
     values += c.out[o] ? job.out[o].w : 0;
   }
   for (std::atomic<long>& s : job.nonfinite) s.store(-1, std::memory_order_relaxed);

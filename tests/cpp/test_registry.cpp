@@ -40,6 +40,7 @@ struct Inputs {
   std::vector<std::vector<double>> arrays;  // per argument (empty for a parameter or an absent array)
   ops::OpCall call;                         // its array pointers: null (absent) or not; run() points them
   long first[ops::kMaxArgs] = {};           // the sample of arrays[k] the call starts at
+  std::vector<int> ee;                      // a kEndEffectors argument: the leaf bodies; run() points the call
 };
 
 Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed, bool with_fext) {
@@ -47,13 +48,16 @@ Inputs make_inputs(const Model& m, const ops::OpSpec& op, long B, unsigned seed,
   std::uniform_real_distribution<double> U(-1, 1);
   Inputs in{B, std::vector<std::vector<double>>(op.n_args), {}};
   in.call.B = B;
+  for (int k = 0; k < op.n_args; ++k)
+    if (op.args[k].kind == ops::kEndEffectors) in.ee = rbd::leaf_bodies(m);
+  in.call.n_ee = static_cast<int>(in.ee.size());
   const std::vector<double> q0 = m.neutral();
   std::vector<double> dv(m.nv);
   for (int k = 0; k < op.n_args; ++k) {
     const ops::ArgSpec& a = op.args[k];
     if (a.kind == ops::kArray || a.kind == ops::kOptionalArray) {
       if (a.kind == ops::kOptionalArray && a.shape.d[0] == ops::kNb && !with_fext) continue;
-      const long n = ops::arg_values(a, m);
+      const long n = ops::arg_values(a, m, in.call.n_ee);
       std::vector<double>& x = in.arrays[k];
       x.resize(B * n);
       for (long s = 0; s < B; ++s) {
@@ -92,10 +96,12 @@ template <typename T> std::vector<double> run(rbd::Handle& h, int id, const Inpu
   const Model& m = h.model();
   const ops::OpSpec& op = *ops::op_table()[id].spec;
   ops::OpCall c = in64.call;
+  c.ee = in64.ee.empty() ? nullptr : in64.ee.data();
+  const int n_ee = c.n_ee;
   std::vector<std::vector<T>> ins(op.n_args);
   for (int k = 0; k < op.n_args; ++k)
     if (c.in[k]) {  // from sample first[k] on
-      const auto from = in64.arrays[k].begin() + in64.first[k] * ops::arg_values(op.args[k], m);
+      const auto from = in64.arrays[k].begin() + in64.first[k] * ops::arg_values(op.args[k], m, n_ee);
       ins[k].assign(from, in64.arrays[k].end());
       c.in[k] = ins[k].data();
     }
@@ -103,9 +109,9 @@ template <typename T> std::vector<double> run(rbd::Handle& h, int id, const Inpu
   long w = 0;
   for (int o = 0; o < op.n_out; ++o) {
     if (!(mask >> o & 1u)) continue;
-    outs[o].assign(in64.B * ops::out_values(op.out[o], m), T(-1));
+    outs[o].assign(in64.B * ops::out_values(op.out[o], m, n_ee), T(-1));
     c.out[o] = outs[o].data();
-    w += ops::out_values(op.out[o], m);
+    w += ops::out_values(op.out[o], m, n_ee);
   }
   h.run(id, c);
   std::vector<double> r;
@@ -113,15 +119,15 @@ template <typename T> std::vector<double> run(rbd::Handle& h, int id, const Inpu
   for (long s = 0; s < in64.B; ++s)
     for (int o = 0; o < op.n_out; ++o) {
       if (!(mask >> o & 1u)) continue;
-      const long n = ops::out_values(op.out[o], m);
+      const long n = ops::out_values(op.out[o], m, n_ee);
       r.insert(r.end(), outs[o].begin() + s * n, outs[o].begin() + (s + 1) * n);
     }
   return r;
 }
 
-long sample_width(const Model& m, const ops::OpSpec& op) {
+long sample_width(const Model& m, const ops::OpSpec& op, int n_ee) {
   long w = 0;
-  for (int o = 0; o < op.n_out; ++o) w += ops::out_values(op.out[o], m);
+  for (int o = 0; o < op.n_out; ++o) w += ops::out_values(op.out[o], m, n_ee);
   return w;
 }
 
@@ -176,7 +182,7 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "inverse_dynamics_gradient_bpass_dqd", "dccrba_fd", "cmm_time_variation_fd",
         "inverse_dynamics_regressor_gradient", "forward_dynamics_parameter_gradient", "quadratic_state_cost_tangent",
         "com_cost", "momentum_cost", "forward_kinematics", "frame_placement", "frame_jacobian", "frame_jacobian_dot",
-        "ee_pos_cost"}) {
+        "ee_pos_cost", "end_effector_pose", "end_effector_pose_gradient", "end_effector_pose_hessian_analytic"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
@@ -292,6 +298,13 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       rbd::batch::frame_jacobian(m, B, in_of(0), in.call.choice[1], in.call.choice[2], ref.data());
     } else if (n == "frame_jacobian_dot") {
       rbd::batch::frame_jacobian_dot(m, B, in_of(0), in_of(1), in.call.choice[2], in.call.choice[3], ref.data());
+    } else if (n.rfind("end_effector_pose", 0) == 0) {  // the leaf bodies, each sample's tool points
+      rbd::EndEffectors ee;
+      ee.bodies = in.ee;
+      ee.offsets = in_of(n == "end_effector_pose_hessian_analytic" ? 1 : 2);
+      if (n == "end_effector_pose") rbd::batch::end_effector_pose(m, B, in_of(0), ee, ref.data());
+      else if (n == "end_effector_pose_gradient") rbd::batch::end_effector_pose_gradient(m, B, in_of(0), ee, ref.data());
+      else rbd::batch::end_effector_pose_hessian_analytic(m, B, in_of(0), ee, ref.data());
     } else if (n == "ee_pos_cost") {  // the default end effector, each sample's own tool point
       const long nx = m.nq + nv;
       std::vector<double> val(B), g(B * nx), H(B * nx * nx);
@@ -367,7 +380,7 @@ TEST_P(RegistryModels, EngineEqualsSerialLoop) {
     SCOPED_TRACE(op.name);
     if (op.model == ops::kNoMimic && m.has_mimic()) continue;  // RequirementsAreChecked
     const Inputs in = make_inputs(m, op, B, 5, true);
-    const long w = sample_width(m, op);
+    const long w = sample_width(m, op, in.call.n_ee);
     const std::vector<double> ref = run<double>(serial, e.id, in);
     const std::vector<double> r1 = run<double>(e1, e.id, in), r2 = run<double>(e2, e.id, in);
     ASSERT_EQ(r1.size(), r2.size());

@@ -91,14 +91,18 @@ METHODS = {
     "frame_jacobian": ("q",),
     "frame_jacobian_dot": ("q", "qd"),
     "ee_pos_cost": ("q", "p_des", "W", "ee_offset"),
+    "end_effector_pose": ("q", "ee_offsets"),
+    "end_effector_pose_gradient": ("q", "ee_offsets"),
+    "end_effector_pose_hessian_analytic": ("q", "offsets"),
 }
 FRAME_METHODS = ("frame_placement", "frame_jacobian", "frame_jacobian_dot")
 BARRIERS = ("joint_position_barrier", "joint_velocity_barrier", "joint_torque_barrier")
+N_LEAVES = 4  # HyQ's end effectors by default: its four lower legs
 KIND = {"q": "config", "q0": "config", "q1": "config", "qd": "tangent", "qdd": "tangent", "tau": "tangent",
         "u": "tangent", "v": "tangent", "f_ext": "force", "f_in": "force", "f": "force", "minv_b": "matrix",
         "dV_dq": "cols", "dA_dq": "cols", "S": "cols", "dA_dqd": "cols",
         "x": "state", "qpos": "config", "qpos0": "config", "qpos1": "config", "x_des": "state", "u_des": "tangent",
-        "R": "weights", "p_des": "point", "h_des": "wrench"}
+        "R": "weights", "p_des": "point", "h_des": "wrench", "ee_offsets": "ee_points", "offsets": "ee_points"}
 # names whose kind depends on the method
 KIND_OF = {("quadratic_state_cost", "Q"): "state_weights", ("quadratic_state_cost_tangent", "Q"): "tangent_weights",
            ("com_cost", "W"): "point_weights", ("momentum_cost", "W"): "wrench_weights",
@@ -121,7 +125,9 @@ OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_s
             ("inverse_dynamics_gradient_bpass_dqd", "qdd"),
             ("inverse_dynamics", "qdd"), ("inverse_dynamics", "f_ext"), ("aba", "f_ext"),
             ("forward_dynamics", "f_ext"), ("inverse_dynamics_regressor", "qdd"),
-            ("inverse_dynamics_regressor_gradient", "qdd"), ("ee_pos_cost", "ee_offset")}
+            ("inverse_dynamics_regressor_gradient", "qdd"), ("ee_pos_cost", "ee_offset"),
+            ("end_effector_pose", "ee_offsets"), ("end_effector_pose_gradient", "ee_offsets"),
+            ("end_effector_pose_hessian_analytic", "offsets")}
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
@@ -150,7 +156,7 @@ def valid_value(model, method, name, seed=0):
     kind = kind_of(method, name)
     if kind.endswith("weights"):
         return rng.uniform(0, 1, width(model, method, name))
-    if kind in ("point", "wrench"):
+    if kind in ("point", "wrench", "ee_points"):
         return rng.uniform(-1, 1, width(model, method, name))
     if kind in BOUND_KINDS:  # wide bounds around any valid value, the first one infinite
         b = np.full(width(model, method, name), 1e3 if kind.startswith("upper") else -1e3)
@@ -191,7 +197,7 @@ def width(model, method, name):
             "state_weights": (model.nq + model.nv,), "tangent_weights": (2 * model.nv,), "point": (3,),
             "point_weights": (3,), "wrench": (6,), "wrench_weights": (6,), "lower_q": (model.nq,),
             "upper_q": (model.nq,), "lower_v": (model.nv,), "upper_v": (model.nv,),
-            "coords_q": (model.nq,)}[kind_of(method, name)]
+            "coords_q": (model.nq,), "ee_points": (N_LEAVES, 3)}[kind_of(method, name)]
 
 
 def bad_shapes(model, method, name):
@@ -202,6 +208,8 @@ def bad_shapes(model, method, name):
         return [(n + 1,), (n, 1), (2, 2, n), ()]
     if kind == "tangent_weights":
         return [(nv,), (2 * nv + 1,), (2, 2, 2 * nv), ()]
+    if kind == "ee_points":  # (3,) is one tool point for all
+        return [(2,), (N_LEAVES + 1, 3), (N_LEAVES, 4), (2, 2, N_LEAVES, 3), ()]
     if kind == "state_weights":
         return [(nq,), (nq + nv + 1,), (2, 2, nq + nv), ()]
     if kind == "weights":
@@ -245,7 +253,7 @@ def test_wrong_shape(rbd, hyq, method, arg):
            "state_weights": rf"nq\+nv={hyq.nq + hyq.nv}", "tangent_weights": f"2nv={2 * hyq.nv}", "point": "3=3",
            "point_weights": "3=3", "wrench": "6=6", "wrench_weights": "6=6", "lower_q": f"nq={hyq.nq}",
            "upper_q": f"nq={hyq.nq}", "lower_v": f"nv={hyq.nv}", "upper_v": f"nv={hyq.nv}",
-           "coords_q": f"nq={hyq.nq}"}[kind_of(method, arg)]
+           "coords_q": f"nq={hyq.nq}", "ee_points": f"n_ee={N_LEAVES}"}[kind_of(method, arg)]
     for shape in bad_shapes(hyq, method, arg):
         args = valid_args(hyq, method)
         args[arg] = np.zeros(shape)

@@ -20,7 +20,7 @@ namespace ops {
 
 constexpr int kMaxArgs = 10;    // arguments (arrays and parameters) of one operation
 constexpr int kMaxOutputs = 4;  // outputs of one operation
-constexpr int kMaxRank = 3;     // dimensions of one sample of an array
+constexpr int kMaxRank = 4;     // dimensions of one sample of an array
 
 // one dimension of a per-sample shape: a literal size (> 0) or a size of the model
 enum Dim : int {
@@ -31,6 +31,7 @@ enum Dim : int {
   k2Nv = -5,  // 2 nv (tangent state)
   k3Nv = -6,  // 3 nv (tangent state and input)
   k10Nb = -7, // 10 nb (inertial parameters, Model::inertial_parameters)
+  kNee = -8,  // the call's end effectors (its kEndEffectors argument)
 };
 
 // the per-sample shape of an array: rank 0..kMaxRank
@@ -38,13 +39,14 @@ struct Shape {
   int rank;
   int d[kMaxRank];
 };
-constexpr Shape scalar() { return {0, {0, 0, 0}}; }  // one value per sample
-constexpr Shape shape(int a) { return {1, {a, 0, 0}}; }
-constexpr Shape shape(int a, int b) { return {2, {a, b, 0}}; }
-constexpr Shape shape(int a, int b, int c) { return {3, {a, b, c}}; }
+constexpr Shape scalar() { return {0, {0, 0, 0, 0}}; }  // one value per sample
+constexpr Shape shape(int a) { return {1, {a, 0, 0, 0}}; }
+constexpr Shape shape(int a, int b) { return {2, {a, b, 0, 0}}; }
+constexpr Shape shape(int a, int b, int c) { return {3, {a, b, c, 0}}; }
+constexpr Shape shape(int a, int b, int c, int d) { return {4, {a, b, c, d}}; }
 
-// the extent of a dimension on a model of sizes (nq, nv, nb)
-RBD_HD constexpr long extent(int d, int nq, int nv, int nb) {
+// the extent of a dimension on a model of sizes (nq, nv, nb), for a call with n_ee end effectors
+RBD_HD constexpr long extent(int d, int nq, int nv, int nb, int n_ee = 0) {
   return d > 0 ? d
        : d == kNq ? nq
        : d == kNv ? nv
@@ -53,11 +55,12 @@ RBD_HD constexpr long extent(int d, int nq, int nv, int nb) {
        : d == k2Nv ? 2L * nv
        : d == k3Nv ? 3L * nv
        : d == k10Nb ? 10L * nb
+       : d == kNee ? n_ee
        : 0;
 }
-RBD_HD constexpr long values_of(const Shape& s, int nq, int nv, int nb) {
+RBD_HD constexpr long values_of(const Shape& s, int nq, int nv, int nb, int n_ee = 0) {
   long n = 1;
-  for (int k = 0; k < s.rank; ++k) n *= extent(s.d[k], nq, nv, nb);
+  for (int k = 0; k < s.rank; ++k) n *= extent(s.d[k], nq, nv, nb, n_ee);
   return n;
 }
 
@@ -77,6 +80,9 @@ enum ArgKind : unsigned char {
                    // R row-major, then p): resolve_names
   kEndEffector,    // a joint by name whose body is an end effector (rbd::end_effector_bodies; an OpCall holds
                    // the body, -1: the first leaf body, the default). The kernel gets the body in choice[k]
+  kEndEffectors,   // joints by name whose bodies are the end effectors (default: the leaf bodies, in body
+                   // order); their number is the dimension kNee. An OpCall and the kernel's OpArgs hold the
+                   // bodies in ee[0, n_ee)
 };
 
 // the value checks of an array, one pass over its values
@@ -105,15 +111,18 @@ constexpr ArgSpec array(const char* name, Shape s, ValueCheck c = kFiniteValues)
 constexpr ArgSpec optional_array(const char* name, Shape s, ValueCheck c = kFiniteValues) {
   return {name, kOptionalArray, s, c, 0, nullptr};
 }
-constexpr ArgSpec real(const char* name, double def) { return {name, kReal, {0, {0, 0, 0}}, kFiniteValues, def, nullptr}; }
+constexpr ArgSpec real(const char* name, double def) { return {name, kReal, scalar(), kFiniteValues, def, nullptr}; }
 constexpr ArgSpec param(const char* name, ArgKind kind, double def = 0, const char* const* choices = nullptr) {
-  return {name, kind, {0, {0, 0, 0}}, kFiniteValues, def, choices};
+  return {name, kind, scalar(), kFiniteValues, def, choices};
 }
 // a frame by name, and a joint by name whose body is an end effector (default: the first leaf body)
 constexpr ArgSpec frame(const char* name) {
-  return {name, kFrame, {1, {12, 0, 0}}, kFiniteValues, __builtin_nan(""), nullptr};  // required
+  return {name, kFrame, shape(12), kFiniteValues, __builtin_nan(""), nullptr};  // required
 }
-constexpr ArgSpec end_effector(const char* name) { return {name, kEndEffector, {0, {0, 0, 0}}, kFiniteValues, -1, nullptr}; }
+constexpr ArgSpec end_effector(const char* name) {
+  return {name, kEndEffector, scalar(), kFiniteValues, -1, nullptr};
+}
+constexpr ArgSpec end_effectors(const char* name) { return {name, kEndEffectors, scalar(), kFiniteValues, 0, nullptr}; }
 // X_body_frame from a kFrame argument's 12 values
 template <typename S> RBD_HD Transform<S> frame_transform(const S* x) {
   Transform<S> X;
@@ -123,7 +132,7 @@ template <typename S> RBD_HD Transform<S> frame_transform(const S* x) {
 }
 // a positive real; `what` names it in messages ("expected a positive <what>")
 constexpr ArgSpec positive(const char* name, double def, const char* const* what) {
-  return {name, kPositive, {0, {0, 0, 0}}, kFiniteValues, def, what};
+  return {name, kPositive, scalar(), kFiniteValues, def, what};
 }
 
 struct OutSpec {
@@ -201,6 +210,8 @@ template <typename S> struct OpArgs {
   int choice[kMaxArgs];
   S* out[kMaxOutputs];
   S* scratch;
+  const int* ee;  // the end effectors' bodies (a kEndEffectors argument), n_ee of them
+  int n_ee;
 };
 
 }  // namespace ops

@@ -916,6 +916,72 @@ struct FrameJacobianDot {
   }
 };
 
+// End effectors: the bodies of the joints named in ee_joint_names (default: the leaf bodies, in body order),
+// n_ee of them, each at its tool point (an offset in its body frame: (n_ee, 3), or (3,) for all; default
+// zero). Pose = [x, y, z, roll, pitch, yaw] with R = Rz(yaw) Ry(pitch) Rx(roll); derivatives along the tangent
+// q ⊕ δ. At pitch = ±π/2 (gimbal lock) the rpy rows of the derivatives are singular.
+
+#define RBD_EE_ARGS(offsets)                                                                           \
+  3, {array("q", shape(kNq), kConfiguration), end_effectors("ee_joint_names"),                       \
+      optional_array(offsets, shape(kNee, 3))}
+
+// the tool point of end effector e (a.in[2]: the offsets, or null)
+template <typename S> RBD_HD Vec3<S> tool_point(const OpArgs<S>& a, int e) {
+  return a.in[2] ? Vec3<S>{a.in[2][3 * e], a.in[2][3 * e + 1], a.in[2][3 * e + 2]} : Vec3<S>::zero();
+}
+
+struct EndEffectorPose {
+  static constexpr OpSpec spec = {
+      "end_effector_pose", "kinematics", "kinematics",
+      "Pose (n_ee, 6) = [x, y, z, roll, pitch, yaw] of each end effector: the world position of its tool point "
+      "and the roll-pitch-yaw angles of its body's orientation (pitch in [-π/2, π/2]).",
+      RBD_EE_ARGS("ee_offsets"),
+      1, {{"pose", shape(kNee, 6)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    for (int e = 0; e < a.n_ee; ++e) end_effector_pose(w, a.ee[e], tool_point(a, e), a.out[0] + 6 * e);
+    return true;
+  }
+};
+
+struct EndEffectorPoseGradient {
+  static constexpr OpSpec spec = {
+      "end_effector_pose_gradient", "kinematics", "kinematics",
+      "Analytic gradient (n_ee, 6, nv) of end_effector_pose with respect to tangent perturbations: G[e, r, k] = "
+      "∂pose[e, r]/∂δ_k. Position rows are the tool point's world-frame Jacobian; rpy rows E(rpy)⁻¹ times the "
+      "world angular Jacobian, E mapping rpy rates to angular velocity.",
+      RBD_EE_ARGS("ee_offsets"),
+      1, {{"G", shape(kNee, 6, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    for (int e = 0; e < a.n_ee; ++e)
+      end_effector_pose_gradient(m, w, a.ee[e], tool_point(a, e), a.out[0] + 6L * m.nv * e);
+    return true;
+  }
+};
+
+struct EndEffectorPoseHessianAnalytic {
+  static constexpr OpSpec spec = {
+      "end_effector_pose_hessian_analytic", "end_effector_pose_hessian", "kinematics",
+      "Hessian (n_ee, 6, nv, nv) of end_effector_pose in closed form, H[e, r, j, k] = ∂gradient[e, r, k]/∂δ_j: for "
+      "support-chain columns s_j, s_k with j an ancestor of k (or in the same joint), ∂s_k/∂δ_j = s_j × s_k, and "
+      "the tool point moves with s_j. Not symmetric within free-flyer and spherical joints. Equal to the "
+      "dual-number end_effector_pose_hessian to rounding. Note the argument order: offsets before ee_joint_names.",
+      3,
+      {array("q", shape(kNq), kConfiguration), optional_array("offsets", shape(kNee, 3)),
+       end_effectors("ee_joint_names")},
+      1, {{"H", shape(kNee, 6, kNv, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
+    for (int e = 0; e < a.n_ee; ++e) {
+      const Vec3<S> o = a.in[1] ? Vec3<S>{a.in[1][3 * e], a.in[1][3 * e + 1], a.in[1][3 * e + 2]} : Vec3<S>::zero();
+      end_effector_pose_hessian_analytic(m, w, a.ee[e], o, a.out[0] + 6L * m.nv * m.nv * e);
+    }
+    return true;
+  }
+};
+#undef RBD_EE_ARGS
+
 struct EePosCost {
   static constexpr OpSpec spec = {
       "ee_pos_cost", "ee_pos_cost", "costs",
@@ -1072,7 +1138,8 @@ using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crb
                       InverseDynamicsRegressorGradient, ForwardDynamicsParameterGradient, QuadraticStateCost,
                       QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost, JointPositionBarrier,
                       JointVelocityBarrier, JointTorqueBarrier, ForwardKinematics, FramePlacement, FrameJacobian,
-                      FrameJacobianDot, EePosCost>;
+                      FrameJacobianDot, EePosCost, EndEffectorPose, EndEffectorPoseGradient,
+                      EndEffectorPoseHessianAnalytic>;
 
 }  // namespace ops
 }  // namespace rbd

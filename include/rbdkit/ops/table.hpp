@@ -40,11 +40,13 @@ struct OpCall {
   int choice[kMaxArgs] = {};        // kFlag (0/1), kChoice, kIntegrator, kConvention, kFrame (the frame's
                                     // index), kEndEffector (the body, -1: the first leaf)
   void* out[kMaxOutputs] = {};      // (B x shape) or null
+  const int* ee = nullptr;          // a kEndEffectors argument: the bodies (n_ee of them, at least one)
+  int n_ee = 0;
 };
 
 // values per sample of an argument or output on a model
-long arg_values(const ArgSpec& a, const Model& m);
-long out_values(const OutSpec& o, const Model& m);
+long arg_values(const ArgSpec& a, const Model& m, int n_ee = 0);
+long out_values(const OutSpec& o, const Model& m, int n_ee = 0);
 // scratch values per sample, and the workspace layout an operation needs
 long scratch_values(const OpSpec& op, const Model& m);
 WorkspaceLayout workspace_layout(const OpSpec& op, const Model& m);
