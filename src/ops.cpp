@@ -330,7 +330,7 @@ template <typename T> OpCall resolve_names(const Model& m, const OpSpec& op, con
 template OpCall resolve_names<double>(const Model&, const OpSpec&, const OpCall&, std::vector<double>&);
 template OpCall resolve_names<float>(const Model&, const OpSpec&, const OpCall&, std::vector<float>&);
 
-void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample) {
+void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample, const OpCall* call) {
   if (op.failure == kNoMass) {
     std::ostringstream os;
     os << op.name << ": the robot has no mass (total mass 0";
@@ -340,6 +340,29 @@ void throw_failure(const Model& m, const OpSpec& op, const double* q, long sampl
   }
   if (op.failure == kNotPositiveDefinite || singular_joint(m, q) >= 0)
     throw_not_positive_definite(m, op.name, q, sample);
+  if (op.failure == kOscSingular) {
+    // the first end effector that fewer than 6 DoF reach, else a singular configuration
+    int which = -1, dof = 0;
+    for (int e = 0; call && e < call->n_ee && which < 0; ++e) {
+      std::vector<char> moves(m.nv, 0);  // coordinates that move the point (mimics share their target's)
+      for (int k = call->ee[e]; k >= 0; k = m.bodies[k].parent)
+        for (int a = 0; a < m.bodies[k].nv; ++a) moves[m.bodies[k].v_idx + a] = 1;
+      dof = 0;
+      for (char c : moves) dof += c;
+      if (dof < 6) which = e;
+    }
+    std::ostringstream os;
+    os << op.name << ": J M⁻¹ Jᵀ of ";
+    if (which >= 0) os << "end effector " << which << " (joint '" << m.joints[call->ee[which]].name << "')";
+    else os << "an end effector";
+    os << " is singular";
+    if (sample >= 0) os << " at sample " << sample;
+    os << ": "
+       << (which >= 0 ? "only " + std::to_string(dof) + " DoF reach it (6 are needed)"
+                      : std::string("the configuration is singular (its Jacobian has rank < 6)"))
+       << ", so the operational-space inertia is undefined";
+    throw std::invalid_argument(os.str());
+  }
   std::ostringstream os;
   os << op.name << ": a stage of the step overflowed (non-finite state or mass matrix)";
   if (sample >= 0) os << " at sample " << sample;
@@ -387,7 +410,7 @@ void run_serial(const Model& m, const OpEntry& e, const OpCall& c, Workspace<dou
     for (int k = 0; k < op.n_args; ++k)
       if (c.in[k]) a.in[k] = static_cast<const double*>(c.in[k]) + s * in_step[k];
     for (int o = 0; o < op.n_out; ++o) a.out[o] = c.out[o] ? static_cast<double*>(c.out[o]) + s * out_step[o] : nullptr;
-    if (!e.run(mv, w, a)) throw_failure(m, op, a.in[0], c.B > 1 ? s : -1);
+    if (!e.run(mv, w, a)) throw_failure(m, op, a.in[0], c.B > 1 ? s : -1, &c);
   }
   check_outputs<double>(m, op, c);
 }

@@ -43,10 +43,9 @@ from ._checks import Batch, as_real_array
 
 
 class KinematicsMixin:
-    """end_effector_pose_hessian (dual numbers) and osc_inertia (see the
-    module doc for shapes and conventions). The other kinematics operations
-    are registered operations (include/rbdkit/ops/registry.hpp), bound by
-    rbdkit.RBD itself."""
+    """end_effector_pose_hessian, by dual numbers (see the module doc for
+    shapes and conventions). The other kinematics operations are registered
+    operations (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself."""
 
     # ---- argument helpers
     def _ee_bodies(self, ee_joint_names, name="ee_joint_names"):
@@ -95,11 +94,3 @@ class KinematicsMixin:
         Note the argument order: offsets before ee_joint_names."""
         return self._ee_call(_core.end_effector_pose_hessian, q, ee_joint_names, offsets, "offsets",
                              (6, self.nv, self.nv))
-
-    # ---- operational space
-    def osc_inertia(self, q, ee_joint_names=None, ee_offsets=None):
-        """Operational-space inertia Λ (n_ee, 6, 6) = (J M⁻¹ Jᵀ)⁻¹ of each
-        end effector, J (6, nv) the LOCAL_WORLD_ALIGNED Jacobian of its tool
-        point (rows [linear; angular]). ValueError when J M⁻¹ Jᵀ is singular:
-        fewer than 6 DoF reach the end effector, or a singular configuration."""
-        return self._ee_call(_core.osc_inertia, q, ee_joint_names, ee_offsets, "ee_offsets", (6, 6))

@@ -1,7 +1,7 @@
 // rbdkit._core — bindings of the kinematics family (kinematics_api.hpp).
 //
-// end_effector_pose_hessian (dual numbers) and osc_inertia, which are not
-// registered operations (the others: ops/registry.hpp, bind_ops.cpp). Thin, like bindings.cpp: the
+// end_effector_pose_hessian (dual numbers), which is not a registered
+// operation (the others: ops/registry.hpp, bind_ops.cpp). Thin, like bindings.cpp: the
 // Python layer (python/rbdkit/_kinematics.py) checks shapes and resolves
 // names once per call; these functions take
 // C-contiguous float64 arrays with the batch on axis 0, check values in C++
@@ -51,12 +51,4 @@ void bind_kinematics(nb::module_& m) {
           rbd::batch::end_effector_pose_hessian(md, batch_of(q), q.data(), ee, H.data());
         },
         "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "H"_a);
-  m.def("osc_inertia",
-        [](const Model& md, In q, std::vector<int> bodies, std::optional<In> offsets, const std::string& arg,
-           Out Lambda) {
-          const rbd::EndEffectors ee = end_effectors(bodies, offsets, arg.c_str());
-          nb::gil_scoped_release r;
-          rbd::batch::osc_inertia(md, batch_of(q), q.data(), ee, Lambda.data());
-        },
-        "model"_a, "q"_a, "bodies"_a, "offsets"_a.none(), "offsets_arg"_a, "Lambda"_a);
 }

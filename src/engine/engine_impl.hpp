@@ -309,18 +309,37 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
 
   const long f = job.failed.load();
   if (f >= 0) {
-    // name the joint: the first sample of the failed pack (q: the first input) where one is singular
+    // the failed pack's lanes one at a time, in float64 on the serial kernel: the first that fails is
+    // the sample to name (f when none does: a float32 failure float64 does not see)
     const long last = std::min(c.B, f + EngineT<T>::W);
-    std::vector<double> qs(m.nq);
-    auto load_q = [&](long s) {
-      for (int k = 0; k < m.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s * job.in[0].stride + k]);
-    };
-    for (long s = f; s < last && op.failure != ops::kNoMass; ++s) {
-      load_q(s);
-      if (singular_joint(m, qs.data()) >= 0) throw_not_positive_definite(m, op.name, qs.data(), s);
+    long s_fail = -1;
+    {
+      const ops::Kernel<double> kernel = ops::op_table()[ops::index_of<Op>(ops::AllOps{})].run;
+      WorkspaceBuffer wb(m, ops::workspace_layout(op, m));
+      std::vector<double> scratch(static_cast<size_t>(ops::scratch_values(op, m)) + 1);
+      std::vector<std::vector<double>> ins(op.n_args), outs(op.n_out);
+      for (long s = f; s < last && s_fail < 0; ++s) {
+        ops::OpArgs<double> a{};
+        for (int k = 0; k < op.n_args; ++k) {
+          a.real[k] = c.real[k], a.choice[k] = c.choice[k];
+          if (!job.in[k].p) continue;
+          const T* x = job.in[k].p + s * job.in[k].stride;
+          ins[k].assign(x, x + job.in[k].w);
+          a.in[k] = ins[k].data();
+        }
+        for (int o = 0; o < op.n_out; ++o)
+          if (job.out[o].p) outs[o].assign(static_cast<size_t>(job.out[o].w), 0.0), a.out[o] = outs[o].data();
+        a.scratch = scratch.data(), a.ee = c.ee, a.n_ee = c.n_ee;
+        if (!kernel(m.view(), wb.get(), a)) s_fail = s;
+      }
     }
-    load_q(f);
-    ops::throw_failure(m, op, qs.data(), f);
+    if (s_fail < 0) s_fail = f;
+    // name the joint where one is singular (q: the first input)
+    std::vector<double> qs(m.nq);
+    for (int k = 0; k < m.nq; ++k) qs[k] = static_cast<double>(job.in[0].p[s_fail * job.in[0].stride + k]);
+    if (op.failure != ops::kNoMass && singular_joint(m, qs.data()) >= 0)
+      throw_not_positive_definite(m, op.name, qs.data(), s_fail);
+    ops::throw_failure(m, op, qs.data(), s_fail, &c);
   }
   // the first output that overflowed, at its first such sample
   for (int o = 0; o < op.n_out; ++o) {

@@ -144,7 +144,21 @@ double float32_bound(const ops::OpSpec& op) {
   if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 1e-1;
   if (n == "forward_dynamics_parameter_gradient") return 2e-3;  // M⁻¹ applied, as minv's family
   if (f == "fdsva_so") return 5e-2;
+  if (f == "osc") return 2e-2;  // (J M⁻¹ Jᵀ)⁻¹: cond(M) and cond(J M⁻¹ Jᵀ) both
   return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
+}
+
+// whether at least 6 coordinates move each of these bodies (the operational-space inertia is defined)
+bool six_dof_reach(const Model& m, const std::vector<int>& bodies) {
+  for (int b : bodies) {
+    std::vector<char> moves(m.nv, 0);
+    for (int k = b; k >= 0; k = m.bodies[k].parent)
+      for (int a = 0; a < m.bodies[k].nv; ++a) moves[m.bodies[k].v_idx + a] = 1;
+    int dof = 0;
+    for (char c : moves) dof += c;
+    if (dof < 6) return false;
+  }
+  return true;
 }
 
 class RegistryModels : public ::testing::TestWithParam<ModelCase> {};
@@ -182,12 +196,14 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "inverse_dynamics_gradient_bpass_dqd", "dccrba_fd", "cmm_time_variation_fd",
         "inverse_dynamics_regressor_gradient", "forward_dynamics_parameter_gradient", "quadratic_state_cost_tangent",
         "com_cost", "momentum_cost", "forward_kinematics", "frame_placement", "frame_jacobian", "frame_jacobian_dot",
-        "ee_pos_cost", "end_effector_pose", "end_effector_pose_gradient", "end_effector_pose_hessian_analytic"}) {
+        "ee_pos_cost", "end_effector_pose", "end_effector_pose_gradient", "end_effector_pose_hessian_analytic",
+        "osc_inertia"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
     if (op.model == ops::kNoMimic && m.has_mimic()) continue;  // RequirementsAreChecked
     const Inputs in = make_inputs(m, op, B, 3, true);
+    if (op.failure == ops::kOscSingular && !six_dof_reach(m, in.ee)) continue;  // EngineEqualsSerialLoop
     const std::vector<double> got = run<double>(h, id, in, op.returns);  // what RBD returns
     const long w = static_cast<long>(got.size()) / B, nv = m.nv;
     std::vector<double> ref(B * w), tau(B * nv), v(B * m.nb() * 6), a(B * m.nb() * 6), f(B * m.nb() * 6);
@@ -305,6 +321,11 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       if (n == "end_effector_pose") rbd::batch::end_effector_pose(m, B, in_of(0), ee, ref.data());
       else if (n == "end_effector_pose_gradient") rbd::batch::end_effector_pose_gradient(m, B, in_of(0), ee, ref.data());
       else rbd::batch::end_effector_pose_hessian_analytic(m, B, in_of(0), ee, ref.data());
+    } else if (n == "osc_inertia") {
+      rbd::EndEffectors ee;
+      ee.bodies = in.ee;
+      ee.offsets = in_of(2);
+      rbd::batch::osc_inertia(m, B, in_of(0), ee, ref.data());
     } else if (n == "ee_pos_cost") {  // the default end effector, each sample's own tool point
       const long nx = m.nq + nv;
       std::vector<double> val(B), g(B * nx), H(B * nx * nx);
@@ -380,6 +401,10 @@ TEST_P(RegistryModels, EngineEqualsSerialLoop) {
     SCOPED_TRACE(op.name);
     if (op.model == ops::kNoMimic && m.has_mimic()) continue;  // RequirementsAreChecked
     const Inputs in = make_inputs(m, op, B, 5, true);
+    if (op.failure == ops::kOscSingular && !six_dof_reach(m, in.ee)) {  // Λ is undefined there
+      EXPECT_THROW(run<double>(e2, e.id, in), std::invalid_argument);
+      continue;
+    }
     const long w = sample_width(m, op, in.call.n_ee);
     const std::vector<double> ref = run<double>(serial, e.id, in);
     const std::vector<double> r1 = run<double>(e1, e.id, in), r2 = run<double>(e2, e.id, in);
@@ -637,4 +662,38 @@ TEST(Registry, NamesAreResolved) {
     msg = e.what();
   }
   EXPECT_EQ(msg.rfind("ee_joint_name: expected a body index in 0..", 0), 0u) << msg;
+}
+
+// a kernel failing in one lane of a pack: the engine names that sample (the
+// pack's lanes again one at a time), with the operation's own message
+TEST(Registry, EngineNamesTheFailingSample) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  rbd::Handle serial(iiwa), engine(iiwa, {}, 2);
+  const int id = ops::find_op("osc_inertia");
+  Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 6, 2, false);
+  for (int k = 0; k < iiwa.nq; ++k) in.arrays[0][3 * iiwa.nq + k] = 0;  // sample 3: stretched out, singular
+  for (rbd::Handle* h : {&serial, &engine}) {
+    std::string msg;
+    try {
+      run<double>(*h, id, in);
+    } catch (const std::invalid_argument& e) {
+      msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind("osc_inertia: J M⁻¹ Jᵀ of an end effector is singular at sample 3: the configuration is "
+                        "singular", 0),
+              0u)
+        << msg;
+  }
+  // a leg of 3 DoF: the end effector and its DoF are named
+  const Model hyq = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", false);
+  rbd::Handle h(hyq, {}, 2);
+  const Inputs legs = make_inputs(hyq, *ops::op_table()[id].spec, 4, 2, false);
+  std::string msg;
+  try {
+    run<double>(h, id, legs);
+  } catch (const std::invalid_argument& e) {
+    msg = e.what();
+  }
+  EXPECT_NE(msg.find("of end effector 0 (joint '"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("only 3 DoF reach it (6 are needed)"), std::string::npos) << msg;
 }

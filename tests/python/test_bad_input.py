@@ -94,6 +94,7 @@ METHODS = {
     "end_effector_pose": ("q", "ee_offsets"),
     "end_effector_pose_gradient": ("q", "ee_offsets"),
     "end_effector_pose_hessian_analytic": ("q", "offsets"),
+    "osc_inertia": ("q", "ee_offsets"),
 }
 FRAME_METHODS = ("frame_placement", "frame_jacobian", "frame_jacobian_dot")
 BARRIERS = ("joint_position_barrier", "joint_velocity_barrier", "joint_torque_barrier")
@@ -127,7 +128,7 @@ OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_s
             ("forward_dynamics", "f_ext"), ("inverse_dynamics_regressor", "qdd"),
             ("inverse_dynamics_regressor_gradient", "qdd"), ("ee_pos_cost", "ee_offset"),
             ("end_effector_pose", "ee_offsets"), ("end_effector_pose_gradient", "ee_offsets"),
-            ("end_effector_pose_hessian_analytic", "offsets")}
+            ("end_effector_pose_hessian_analytic", "offsets"), ("osc_inertia", "ee_offsets")}
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",

@@ -469,7 +469,7 @@ def test_f_ext_and_options_run_in_cpp(hyq):
                 rbd.integrator(v["q"], v["qd"], v["u"], 0.01, "rk4", f_ext=v["f_ext"]), rtol=1e-10)
     assert_same(h.minv(v["q"], output_dense=False), rbd.minv(v["q"], output_dense=False), rtol=1e-10)
     assert_same(h.aba(v["q"], v["qd"], v["tau"], f_ext=[]), rbd.aba(v["q"], v["qd"], v["tau"]), rtol=1e-10)
-    assert "osc_inertia" not in h.fast_operations()  # not a registered operation
+    assert "end_effector_pose_hessian" not in h.fast_operations()  # not a registered operation
     # a handle with the MuJoCo convention on a floating base keeps the registered ops on RBD's path,
     # but for the conversions between the conventions (the same in either)
     hm = rbdkit.Handle(hyq, output_convention="mujoco")

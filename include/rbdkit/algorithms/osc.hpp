@@ -30,7 +30,7 @@ template <typename S> RBD_HD bool osc_factor_mass_matrix(const ModelView<S>& m, 
 template <typename S> RBD_HD bool osc_inverse_6(S* A, S tol, S* Lambda) {
   S d[6];
   for (int i = 0; i < 6; ++i) {
-    if (!(value_of(A[i * 6 + i]) > 0)) return false;
+    if (!all_lanes(lane_gt(A[i * 6 + i], 0.0))) return false;
     d[i] = S(1) / ssqrt(A[i * 6 + i]);
   }
   // C = D A D with unit diagonal, factored in place
@@ -38,7 +38,7 @@ template <typename S> RBD_HD bool osc_inverse_6(S* A, S tol, S* Lambda) {
     for (int c = 0; c < 6; ++c) A[r * 6 + c] = d[r] * A[r * 6 + c] * d[c];
   if (!cholesky(A, 6)) return false;
   for (int i = 0; i < 6; ++i)
-    if (!(value_of(A[i * 6 + i] * A[i * 6 + i]) > value_of(tol))) return false;
+    if (!all_lanes(lane_gt(A[i * 6 + i] * A[i * 6 + i] - tol, 0.0))) return false;
   // Λ = D C⁻¹ D, column by column
   for (int c = 0; c < 6; ++c) {
     S col[6];

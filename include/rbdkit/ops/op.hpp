@@ -152,6 +152,7 @@ enum OpFailure : unsigned char {
   kNotPositiveDefinite,  // a mass matrix (or articulated inertia) that is not PD: names the joint
   kStepFailed,           // an integrator step: a joint that moves no mass, or a stage that overflowed
   kNoMass,               // a robot of total mass 0: its centre of mass is undefined
+  kOscSingular,          // J M⁻¹ Jᵀ of an end effector is singular (a mass matrix that is not PD: as above)
 };
 
 // the scratch values (of the kernel's scalar) one sample needs

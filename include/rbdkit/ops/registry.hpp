@@ -25,6 +25,7 @@
 #include "../algorithms/kinematics.hpp"
 #include "../algorithms/minv.hpp"
 #include "../algorithms/mujoco_convention.hpp"
+#include "../algorithms/osc.hpp"
 #include "../algorithms/regressor.hpp"
 #include "../algorithms/rnea.hpp"
 #include "../algorithms/rnea_derivatives.hpp"
@@ -980,6 +981,21 @@ struct EndEffectorPoseHessianAnalytic {
     return true;
   }
 };
+struct OscInertia {
+  static constexpr OpSpec spec = {
+      "osc_inertia", "osc_inertia", "osc",
+      "Operational-space inertia Λ (n_ee, 6, 6) = (J M⁻¹ Jᵀ)⁻¹ of each end effector, J (6, nv) the "
+      "LOCAL_WORLD_ALIGNED Jacobian of its tool point (rows [linear; angular]). An error when J M⁻¹ Jᵀ is "
+      "singular: fewer than 6 DoF reach the end effector, or a singular configuration.",
+      RBD_EE_ARGS("ee_offsets"),
+      1, {{"Lambda", shape(kNee, 6, 6)}}, 0b1, 0, kFull, kNoScratch, kOscSingular};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    if (!osc_factor_mass_matrix(m, w, a.in[0])) return false;
+    for (int e = 0; e < a.n_ee; ++e)
+      if (!osc_inertia(m, w, a.ee[e], tool_point(a, e), a.out[0] + 36 * e)) return false;
+    return true;
+  }
+};
 #undef RBD_EE_ARGS
 
 struct EePosCost {
@@ -1139,7 +1155,7 @@ using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crb
                       QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost, JointPositionBarrier,
                       JointVelocityBarrier, JointTorqueBarrier, ForwardKinematics, FramePlacement, FrameJacobian,
                       FrameJacobianDot, EePosCost, EndEffectorPose, EndEffectorPoseGradient,
-                      EndEffectorPoseHessianAnalytic>;
+                      EndEffectorPoseHessianAnalytic, OscInertia>;
 
 }  // namespace ops
 }  // namespace rbd

@@ -80,7 +80,9 @@ template <typename T> OpCall resolve_names(const Model& m, const OpSpec& op, con
 
 // a failed sample: the error the operation's OpFailure names (q: that
 // sample's configuration or state, nq values first)
-[[noreturn]] void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample);
+// sample (nq values first), the call for what it names (an end effector)
+[[noreturn]] void throw_failure(const Model& m, const OpSpec& op, const double* q, long sample,
+                                const OpCall* call = nullptr);
 // outputs (B x shape, T values) are finite: std::runtime_error naming the operation and output otherwise
 template <typename T> void check_outputs(const Model& m, const OpSpec& op, const OpCall& c);
 
