@@ -1,5 +1,6 @@
-// Operation handles: the algorithm table, dependency resolution and the
-// batched calls, each forwarding to a batch:: entry point.
+// Operation handles: the algorithm table, dependency resolution, and the
+// batched calls: run() checks a registered operation's call and gives it to
+// the engine or the serial loop; the typed methods are calls of run().
 #include "rbdkit/handle.hpp"
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include "rbdkit/costs_api.hpp"
 #include "rbdkit/derivatives_api.hpp"
 #include "rbdkit/integrators_api.hpp"
+#include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
 
 namespace rbd {
@@ -147,13 +149,9 @@ Handle::Handle(Model model, const std::vector<std::string>& algorithms, int thre
 std::vector<std::string> Handle::available_operations() const { return operations_; }
 
 bool Handle::has(const std::string& operation) const {
-  // the typed methods below that are not registered operations
-  static const char* methods[] = {"quadratic_state_cost", "quadratic_state_cost_tangent", "quadratic_input_cost",
-                                  "ee_pos_cost", "com_cost", "momentum_cost", "joint_position_barrier",
-                                  "joint_velocity_barrier", "joint_torque_barrier", "plant_step_hessian"};
-  if (std::find(operations_.begin(), operations_.end(), operation) == operations_.end()) return false;
-  if (ops::find_op(operation) >= 0) return true;
-  return std::find(std::begin(methods), std::end(methods), operation) != std::end(methods);
+  // the registered operations this handle's algorithms provide (the typed methods below are calls of them)
+  return ops::find_op(operation) >= 0 &&
+         std::find(operations_.begin(), operations_.end(), operation) != operations_.end();
 }
 
 void Handle::run(int op, const ops::OpCall& call) {
@@ -221,221 +219,156 @@ void Handle::require(const char* operation) const {
                               "' to its algorithms");
 }
 
-void Handle::check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,
-                          const char* w_name) const {
-  check_configurations(model_, B, q, "q");
-  if (qd) check_finite(qd, B * model_.nv, qd_name);
-  if (w) check_finite(w, B * model_.nv, w_name);
+// ---- the typed methods: registered operations on float64 arrays
+namespace {
+struct Call : ops::OpCall {
+  explicit Call(long b) { B = b; }
+  Call& input(int k, const double* p) { in[k] = p, batched[k] = true; return *this; }  // (B x shape)
+  Call& one(int k, const double* p) { in[k] = p, batched[k] = false; return *this; }   // (shape), every sample
+  Call& output(int k, double* p) { out[k] = p; return *this; }
+  Call& value(int k, double x) { real[k] = x; return *this; }
+  Call& pick(int k, int c) { choice[k] = c; return *this; }
+};
+template <typename Op> constexpr int id_of() { return ops::index_of<Op>(ops::AllOps{}); }
+}  // namespace
+
+void Handle::run_typed(int op, const ops::OpCall& call) {
+  if (dtype_ != "float64")
+    throw std::invalid_argument(std::string(ops::op_table()[op].spec->name) +
+                                ": the typed methods take float64 arrays; this handle is float32 (run() takes "
+                                "float arrays)");
+  run(op, call);
 }
 
 // ---- dynamics
 
 void Handle::inverse_dynamics(long B, const double* q, const double* qd, const double* qdd, const double* fext,
                               double gravity, double* tau) {
-  require("inverse_dynamics");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", qdd, "qdd");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->inverse_dynamics<double>(B, q, qd, qdd, gravity, tau);
-  }
-  batch::inverse_dynamics(model_, B, q, qd, qdd, fext, gravity, tau, nullptr, nullptr, nullptr,
-                          &ws_.get(model_, kLinearWorkspace));
+  run_typed(id_of<ops::InverseDynamics>(),
+            Call(B).input(0, q).input(1, qd).input(2, qdd).value(3, gravity).input(4, fext).output(0, tau));
 }
 
 void Handle::crba(long B, const double* q, double* M) {
-  require("crba");
-  if (engine64()) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->crba<double>(B, q, M);
-  batch::crba(model_, B, q, M, &ws_.get(model_, kFullWorkspace));
+  run_typed(id_of<ops::Crba>(), Call(B).input(0, q).output(0, M));
 }
 
 void Handle::minv(long B, const double* q, double* Minv) {
-  require("minv");
-  if (engine64()) return check_inputs(B, q, nullptr, "", nullptr, ""), engine_->minv<double>(B, q, Minv);
-  batch::minv(model_, B, q, true, Minv, &ws_.get(model_, kFullWorkspace));
+  run_typed(id_of<ops::Minv>(), Call(B).input(0, q).pick(1, 1).output(0, Minv));
 }
 
 void Handle::aba(long B, const double* q, const double* qd, const double* tau, const double* fext, double gravity,
                  double* qdd) {
-  require("aba");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", tau, "tau");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
-  }
-  batch::aba(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get(model_, aba_layout(model_)));
+  run_typed(id_of<ops::Aba>(),
+            Call(B).input(0, q).input(1, qd).input(2, tau).input(3, fext).value(4, gravity).output(0, qdd));
 }
 
 void Handle::forward_dynamics(long B, const double* q, const double* qd, const double* tau, const double* fext,
                               double gravity, double* qdd) {
-  require("forward_dynamics");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", tau, "tau");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->forward_dynamics<double>(B, q, qd, tau, gravity, qdd);
-  }
-  batch::forward_dynamics(model_, B, q, qd, tau, fext, gravity, qdd, &ws_.get(model_, kFullWorkspace));
+  run_typed(id_of<ops::ForwardDynamics>(),
+            Call(B).input(0, q).input(1, qd).input(2, tau).input(3, fext).value(4, gravity).output(0, qdd));
 }
 
 // ---- first-order derivatives
 
 void Handle::inverse_dynamics_gradient(long B, const double* q, const double* qd, const double* qdd,
                                        const double* fext, double gravity, double* dtau_dq, double* dtau_dqd) {
-  require("inverse_dynamics_gradient");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", qdd, "qdd");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->inverse_dynamics_gradient<double>(B, q, qd, qdd, gravity, dtau_dq, dtau_dqd);
-  }
-  // batch:: writes [∂tau/∂q | ∂tau/∂qd] (B x nv x 2nv): split it per row
-  const long nv = model_.nv;
-  scratch_.resize(static_cast<size_t>(B * nv * 2 * nv));
-  batch::inverse_dynamics_gradient(model_, B, q, qd, qdd, fext, gravity, scratch_.data(),
-                                   &ws_.get(model_, kFullWorkspace));
-  for (long r = 0; r < B * nv; ++r) {
-    std::copy_n(scratch_.data() + r * 2 * nv, nv, dtau_dq + r * nv);
-    std::copy_n(scratch_.data() + r * 2 * nv + nv, nv, dtau_dqd + r * nv);
-  }
+  run_typed(id_of<ops::InverseDynamicsGradient>(), Call(B).input(0, q).input(1, qd).input(2, qdd).value(3, gravity)
+                                                       .input(4, fext).output(1, dtau_dq).output(2, dtau_dqd));
 }
 
 void Handle::forward_dynamics_gradient(long B, const double* q, const double* qd, const double* tau,
                                        const double* fext, double gravity, double* dqdd_dq, double* dqdd_dqd) {
-  require("forward_dynamics_gradient");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", tau, "tau");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->forward_dynamics_gradient<double>(B, q, qd, tau, gravity, dqdd_dq, dqdd_dqd);
-  }
-  batch::forward_dynamics_gradient(model_, B, q, qd, tau, fext, gravity, dqdd_dq, dqdd_dqd, nullptr,
-                                   &ws_.get(model_, kFullWorkspace));
+  run_typed(id_of<ops::ForwardDynamicsGradient>(), Call(B).input(0, q).input(1, qd).input(2, tau).input(3, fext)
+                                                       .value(4, gravity).output(0, dqdd_dq).output(1, dqdd_dqd));
 }
 
-// ---- integrators and the plant step
+// ---- integrators and the plant step (argument order: registry.hpp's RBD_STEP_ARGS)
 
 void Handle::integrator(long B, const double* q, const double* qd, const double* u, const double* fext, double dt,
                         double gravity, int type, double* x_next) {
-  require("integrator");
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", u, "u");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->integrator<double>(B, q, qd, u, dt, gravity, type, x_next);
-  }
-  batch::integrator(model_, B, q, qd, u, fext, dt, gravity, type, x_next);
+  run_typed(id_of<ops::Integrator>(), Call(B).input(0, q).input(1, qd).input(2, u).value(3, dt).pick(4, type)
+                                          .input(5, fext).value(6, gravity).output(0, x_next));
 }
 
 void Handle::integrator_gradient(long B, const double* q, const double* qd, const double* u, const double* fext,
                                  double dt, double gravity, int type, double* x_next, double* AB) {
-  require("integrator_gradient");
-  std::vector<double> x;
-  if (!x_next) {
-    x.resize(static_cast<size_t>(B * (model_.nq + model_.nv)));
-    x_next = x.data();
-  }
-  if (engine64() && !fext) {
-    check_inputs(B, q, qd, "qd", u, "u");
-    check_finite(&gravity, 1, "gravity");
-    return engine_->integrator_gradient<double>(B, q, qd, u, dt, gravity, type, x_next, AB);
-  }
-  batch::integrator_gradient(model_, B, q, qd, u, fext, dt, gravity, type, x_next, AB);
+  run_typed(id_of<ops::IntegratorGradient>(), Call(B).input(0, q).input(1, qd).input(2, u).value(3, dt)
+                                                  .pick(4, type).input(5, fext).value(6, gravity)
+                                                  .output(0, x_next).output(1, AB));
 }
-
-namespace {
-// q (B x nq) and qd (B x nv) copied out of x (B x (nq + nv)) into `buf`
-void split_state(const Model& m, long B, const double* x, std::vector<double>& buf) {
-  const long nq = m.nq, nv = m.nv;
-  buf.resize(static_cast<size_t>(B * (nq + nv)));
-  for (long s = 0; s < B; ++s) {
-    std::copy_n(x + s * (nq + nv), nq, buf.data() + s * nq);
-    std::copy_n(x + s * (nq + nv) + nq, nv, buf.data() + B * nq + s * nv);
-  }
-}
-}  // namespace
 
 void Handle::plant_step(long B, const double* x, const double* u, const double* fext, double dt, double gravity,
                         int type, double* x_next) {
-  require("plant_step");
-  split_state(model_, B, x, scratch_);
-  integrator(B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type, x_next);
+  run_typed(id_of<ops::PlantStep>(), Call(B).input(0, x).input(1, u).value(2, dt).pick(3, type).input(4, fext)
+                                         .value(5, gravity).output(0, x_next));
 }
 
 void Handle::plant_step_gradient(long B, const double* x, const double* u, const double* fext, double dt,
                                  double gravity, int type, double* AB) {
-  require("plant_step_gradient");
-  split_state(model_, B, x, scratch_);
-  std::vector<double> x_next(static_cast<size_t>(B * (model_.nq + model_.nv)));
-  integrator_gradient(B, scratch_.data(), scratch_.data() + B * model_.nq, u, fext, dt, gravity, type, x_next.data(), AB);
+  run_typed(id_of<ops::PlantStepGradient>(), Call(B).input(0, x).input(1, u).value(2, dt).pick(3, type)
+                                                 .input(4, fext).value(5, gravity).output(1, AB));
 }
 
 void Handle::plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type,
                                 double* x_next, double* AB, double* H) {
-  require("plant_step_hessian");
-  split_state(model_, B, x, scratch_);
-  const long nq = model_.nq, nv = model_.nv;
-  std::vector<double> x_own, AB_own;
-  if (!x_next) x_own.resize(static_cast<size_t>(B * (nq + nv))), x_next = x_own.data();
-  if (!AB) AB_own.resize(static_cast<size_t>(B * 6 * nv * nv)), AB = AB_own.data();
-  batch::plant_step_hessian(model_, B, scratch_.data(), scratch_.data() + B * nq, u, dt, gravity, type, x_next, AB, H);
+  run_typed(id_of<ops::PlantStepHessian>(), Call(B).input(0, x).input(1, u).value(2, dt).pick(3, type)
+                                                .value(4, gravity).output(0, x_next).output(1, AB).output(2, H));
 }
 
-// ---- costs and barriers
+// ---- costs and barriers (every input batched, one sample per row; ee_pos_cost's offset one for all)
 
 void Handle::quadratic_state_cost(long B, const double* x, const double* x_des, const double* Q, double* value,
                                   double* grad, double* H) {
-  require("quadratic_state_cost");
-  batch::quadratic_cost(B, model_.nq + model_.nv, x, x_des, Q, value, grad, H, "x", "x_des", "Q");
+  run_typed(id_of<ops::QuadraticStateCost>(),
+            Call(B).input(0, x).input(1, x_des).input(2, Q).output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::quadratic_state_cost_tangent(long B, const double* x, const double* x_des, const double* Q,
                                           double* value, double* grad, double* H) {
-  require("quadratic_state_cost_tangent");
-  batch::quadratic_state_cost_tangent(model_, B, x, x_des, Q, value, grad, H);
+  run_typed(id_of<ops::QuadraticStateCostTangent>(),
+            Call(B).input(0, x).input(1, x_des).input(2, Q).output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::quadratic_input_cost(long B, const double* u, const double* u_des, const double* R, double* value,
                                   double* grad, double* H) {
-  require("quadratic_input_cost");
-  batch::quadratic_cost(B, model_.nv, u, u_des, R, value, grad, H, "u", "u_des", "R");
+  run_typed(id_of<ops::QuadraticInputCost>(),
+            Call(B).input(0, u).input(1, u_des).input(2, R).output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::ee_pos_cost(long B, const double* q, const double* p_des, const double* W, double* value, double* grad,
                          double* H, int body, const double* offset) {
-  require("ee_pos_cost");
-  if (body < 0) {
-    const std::vector<int> leaves = leaf_bodies(model_);
-    if (leaves.empty()) throw std::invalid_argument("ee_pos_cost: the robot has no end effector");
-    body = leaves.front();
-  }
-  if (body >= model_.nb()) throw std::invalid_argument("body: expected a body index below nb");
-  batch::ee_pos_cost(model_, B, q, p_des, W, body, offset, value, grad, H);
+  run_typed(id_of<ops::EePosCost>(), Call(B).input(0, q).input(1, p_des).input(2, W).pick(3, body < 0 ? -1 : body)
+                                         .one(4, offset).output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::com_cost(long B, const double* q, const double* p_des, const double* W, double* value, double* grad,
                       double* H) {
-  require("com_cost");
-  batch::com_cost(model_, B, q, p_des, W, value, grad, H);
+  run_typed(id_of<ops::ComCost>(),
+            Call(B).input(0, q).input(1, p_des).input(2, W).output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::momentum_cost(long B, const double* q, const double* qd, const double* h_des, const double* W,
                            double* value, double* grad, double* H) {
-  require("momentum_cost");
-  batch::momentum_cost(model_, B, q, qd, h_des, W, value, grad, H);
+  run_typed(id_of<ops::MomentumCost>(), Call(B).input(0, q).input(1, qd).input(2, h_des).input(3, W)
+                                            .output(0, value).output(1, grad).output(2, H));
 }
 
 void Handle::joint_position_barrier(long B, const double* q, const double* lower, const double* upper, double mu,
                                     double* value, double* grad, double* Hdiag) {
-  require("joint_position_barrier");
-  batch::log_barrier(B, model_.nq, q, lower, upper, mu, value, grad, Hdiag, "q");
+  run_typed(id_of<ops::JointPositionBarrier>(), Call(B).input(0, q).input(1, lower).input(2, upper).value(3, mu)
+                                                    .output(0, value).output(1, grad).output(2, Hdiag));
 }
 
 void Handle::joint_velocity_barrier(long B, const double* qd, const double* lower, const double* upper, double mu,
                                     double* value, double* grad, double* Hdiag) {
-  require("joint_velocity_barrier");
-  batch::log_barrier(B, model_.nv, qd, lower, upper, mu, value, grad, Hdiag, "qd");
+  run_typed(id_of<ops::JointVelocityBarrier>(), Call(B).input(0, qd).input(1, lower).input(2, upper).value(3, mu)
+                                                    .output(0, value).output(1, grad).output(2, Hdiag));
 }
 
 void Handle::joint_torque_barrier(long B, const double* u, const double* lower, const double* upper, double mu,
                                   double* value, double* grad, double* Hdiag) {
-  require("joint_torque_barrier");
-  batch::log_barrier(B, model_.nv, u, lower, upper, mu, value, grad, Hdiag, "u");
+  run_typed(id_of<ops::JointTorqueBarrier>(), Call(B).input(0, u).input(1, lower).input(2, upper).value(3, mu)
+                                                  .output(0, value).output(1, grad).output(2, Hdiag));
 }
 
 // ---- Eigen front ends

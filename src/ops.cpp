@@ -3,6 +3,7 @@
 #include "rbdkit/ops/table.hpp"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -141,11 +142,12 @@ int n_choices(const ArgSpec& a) {
 
 }  // namespace
 
-void check_bounded(const double* x, long samples, long n, const char* name, bool batched, double bound) {
+void check_bounded(const double* x, long samples, long n, const char* name, bool batched, double bound,
+                   bool non_finite_ok) {
   for (long s = 0; s < samples; ++s)
     for (long k = 0; k < n; ++k) {
       const double v = x[s * n + k];
-      if (std::fabs(v) <= bound) continue;
+      if (std::fabs(v) <= bound || (non_finite_ok && !std::isfinite(v))) continue;
       std::ostringstream os;
       os << label_of(name, batched, s) << ": expected ";
       if (std::isfinite(v)) os << "values of magnitude at most " << bound << " (larger ones overflow), got " << v;
@@ -183,6 +185,10 @@ long scratch_values(const OpSpec& op, const Model& m) {
     case kScratchComCost: return com_cost_scratch(m.nq, m.nv);
     case kScratchMomentumCost: return momentum_cost_scratch(m.nq, m.nv);
     case kScratchEePosCost: return ee_pos_cost_scratch(m.nq, m.nv);
+    case kScratchD2Integrate: return 2L * (2 * m.nq + 2 * m.nv + static_cast<long>(m.nv) * m.nv);
+    case kScratchEeHessianDual: return ee_hessian_dual_scratch(m.nb(), m.nq, m.nv);
+    case kScratchIntegratorHessian:
+      return integrator_hessian_scratch_values(m.nq, m.nv) + m.nq + m.nv + 6L * m.nv * m.nv;
   }
   return 0;
 }
@@ -223,10 +229,14 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
         break;
       case kTimeStep: check_time_step(c.real[k], a.name); break;
       case kPositive:
-        if (!(c.real[k] > 0 && c.real[k] <= Bounds<T>::input)) {
+        if (!(c.real[k] > 0 && static_cast<T>(c.real[k]) > 0 && c.real[k] <= Bounds<T>::input)) {
           std::ostringstream os;
           if (!std::isfinite(c.real[k])) os << "expected a finite number, got " << c.real[k];
-          else if (c.real[k] > 0) os << "expected a magnitude of at most " << Bounds<T>::input << ", got " << c.real[k];
+          else if (c.real[k] > Bounds<T>::input)
+            os << "expected a magnitude of at most " << Bounds<T>::input << ", got " << c.real[k];
+          else if (c.real[k] > 0)  // rounds to 0 in float32
+            os << "expected a positive " << (a.choices ? a.choices[0] : "number") << " of at least "
+               << std::numeric_limits<T>::denorm_min() << " (the handle's dtype rounds it to 0), got " << c.real[k];
           else os << "expected a positive " << (a.choices ? a.choices[0] : "number") << ", got " << c.real[k];
           bad_param(a, os.str());
         }
@@ -246,6 +256,7 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
         break;
       case kConvention: check_convention(c.choice[k]); break;
       case kFrame:
+        if (m.frames.empty()) bad_param(a, "the model has no frames");
         if (c.choice[k] < 0 || c.choice[k] >= static_cast<int>(m.frames.size()))
           bad_param(a, "expected a frame index in 0.." + std::to_string(m.frames.size() - 1) + ", got " +
                            std::to_string(c.choice[k]));
@@ -266,6 +277,12 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
         break;
     }
   }
+  // the outputs every caller asks for: the kernels write them unconditionally
+  const unsigned needed = required_outputs(op);
+  for (int o = 0; o < op.n_out; ++o)
+    if ((needed >> o & 1u) && !c.out[o])
+      throw std::invalid_argument(std::string(op.name) + ": output " + op.out[o].name +
+                                  ": expected an array, got nothing (null)");
   const int convention = call_convention(op, c);
   for (int k = 0; k < op.n_args; ++k) {
     const ArgSpec& a = op.args[k];

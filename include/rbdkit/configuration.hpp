@@ -7,6 +7,8 @@
 //   integrate(q, v)             q (nq), v (nv)      -> q_next (nq)
 //   difference(q0, q1)          q0, q1 (nq)         -> v (nv), integrate(q0, v) = q1
 //   dintegrate(q, v, arg)       arg 0: ∂/∂q, 1: ∂/∂v -> J (nv x nv, row-major)
+// integrate and dintegrate read only the model's structure: their values may
+// be of another scalar V than the model's (dual numbers: d2Integrate)
 //   ddifference(q0, q1, arg)    arg 0: ∂/∂q0, 1: ∂/∂q1 -> J (nv x nv)
 #pragma once
 
@@ -14,7 +16,7 @@
 
 namespace rbd {
 
-template <typename S> RBD_HD void integrate(const ModelView<S>& m, const S* q, const S* v, S* out) {
+template <typename S, typename V> RBD_HD void integrate(const ModelView<S>& m, const V* q, const V* v, V* out) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;
@@ -31,10 +33,11 @@ template <typename S> RBD_HD void difference(const ModelView<S>& m, const S* q0,
 }
 
 // arg 0: ∂integrate/∂q (tangent), arg 1: ∂integrate/∂v. J (nv x nv) block diagonal
-template <typename S> RBD_HD void dintegrate(const ModelView<S>& m, const S* q, const S* v, int arg, S* J) {
+template <typename S, typename V>
+RBD_HD void dintegrate(const ModelView<S>& m, const V* q, const V* v, int arg, V* J) {
   (void)q;  // the Jacobians of a left-invariant retraction do not depend on q
   const int nv = m.nv;
-  for (int k = 0; k < nv * nv; ++k) J[k] = S(0);
+  for (int k = 0; k < nv * nv; ++k) J[k] = V(0);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     if (b.mimic) continue;

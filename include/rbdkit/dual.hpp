@@ -44,11 +44,20 @@ template <typename S> RBD_HD Dual<S> ssqrt(const Dual<S>& a) {
 template <typename S> RBD_HD Dual<S> satan2(const Dual<S>& y, const Dual<S>& x) {
   return {satan2(y.v, x.v), (x.v * y.d - y.v * x.d) / (x.v * x.v + y.v * y.v)};
 }
-template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return value_of(a) < 0 ? -a : a; }
+// branches on the real part (config.hpp): a bool for a scalar base, a lane
+// mask for a SIMD pack (simd.hpp), whose duals select lane by lane
+template <typename S, typename B> RBD_HD auto lane_lt(const Dual<S>& a, B b) { return lane_lt(a.v, b); }
+template <typename S, typename B> RBD_HD auto lane_gt(const Dual<S>& a, B b) { return lane_gt(a.v, b); }
+template <typename T, int W> struct PackMask;
+template <typename T, int W, typename S>
+RBD_HD Dual<S> select(const PackMask<T, W>& c, const Dual<S>& a, const Dual<S>& b) {
+  return {select(c, a.v, b.v), select(c, a.d, b.d)};
+}
+template <typename S> RBD_HD Dual<S> sabs(const Dual<S>& a) { return select(lane_lt(a, 0), -a, a); }
 
 template <typename S> struct Eps<Dual<S>> {
-  static constexpr typename DualBase<S>::type small = Eps<S>::small;
-  static constexpr typename DualBase<S>::type machine = Eps<S>::machine;
+  static constexpr std::remove_cv_t<decltype(Eps<S>::small)> small = Eps<S>::small;
+  static constexpr std::remove_cv_t<decltype(Eps<S>::machine)> machine = Eps<S>::machine;
 };
 
 }  // namespace rbd

@@ -87,8 +87,10 @@ class Engine {
   // a registered operation (ops/registry.hpp, id: its index in ops::AllOps)
   // on call.B samples in the engine's dtype: the arrays of `call` hold T =
   // double ("float64") or float ("float32") values. No input is checked here
-  // (ops::check_call); a failed sample and non-finite outputs throw as the
-  // methods above do.
+  // (ops::check_call), and frame and end-effector arguments arrive resolved
+  // (ops::resolve_names: a body and its placement, as Handle::run passes
+  // them); Handle::run does both. A failed sample and non-finite outputs
+  // throw as the methods above do.
   void run_op(int op, const ops::OpCall& call);
 
   struct Impl;

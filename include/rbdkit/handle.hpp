@@ -12,22 +12,21 @@
 //   h.integrator_gradient(B, q, qd, u, nullptr, 0.01, -9.81, rbd::kRK4, x_next, AB);
 //   h.crba(B, q, M);                         // std::invalid_argument: add 'crba' to the algorithms
 //
-// Batched calls take B samples stacked on the leading axis, row-major, with
-// the shapes of the batch:: functions they forward to (dynamics.hpp and the
-// *_api.hpp headers): q (B x nq), qd / qdd / tau / u (B x nv), x (B x (nq + nv)),
-// f_ext (B x nb x 6) or null. Inputs are checked there (finite values, unit
-// quaternions) and a bad one throws std::invalid_argument naming it. An
-// operation the handle was not built with throws std::invalid_argument naming
-// the algorithm to add. A Handle keeps one workspace: one Handle per thread.
+// Batched calls take B samples stacked on the leading axis, row-major:
+// q (B x nq), qd / qdd / tau / u (B x nv), x (B x (nq + nv)), f_ext
+// (B x nb x 6) or null. Every call is a registered operation
+// (ops/registry.hpp): run(id, call) checks it (ops::check_call: finite values,
+// unit quaternions, bounds; a bad one throws std::invalid_argument naming it
+// and the sample) and computes it; the typed methods below are run() calls on
+// float64 arrays. An operation the handle was not built with throws
+// std::invalid_argument naming the algorithm to add. A Handle keeps one
+// workspace: one Handle per thread.
 //
 // threads > 0 gives the handle a batched CPU engine (engine.hpp) with that
-// many threads. run(id, call) sends every registered operation
-// (ops/registry.hpp) there, f_ext included, for a batch of B > 1 (a float32
-// handle: always); the typed methods below send inverse and forward dynamics,
-// M, M⁻¹, both first-order gradients, the integrator, the plant step and
-// their gradients there when no f_ext is given. Inputs are checked first, as
-// above; results are bit-identical whatever the thread count. threads = 0
-// (the default): one sample at a time on the calling thread.
+// many threads: run() sends every operation there for a batch of B > 1 (a
+// float32 handle: always), f_ext and the MuJoCo convention included; results
+// are bit-identical whatever the thread count. threads = 0 (the default): one
+// sample at a time on the calling thread.
 #pragma once
 
 #include <Eigen/Core>
@@ -158,6 +157,7 @@ class Handle {
  private:
   void require(const char* operation) const;  // throws unless has(operation)
   void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
+  void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
   Model model_;
@@ -170,12 +170,6 @@ class Handle {
   std::vector<double> op_scratch_;  // the serial loop's scratch
   std::mutex run_;  // one run() at a time (the workspace is shared)
   std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64)
-  // the engine for the typed float64 methods (null on a float32 handle)
-  Engine* engine64() const { return dtype_ == "float64" ? engine_.get() : nullptr; }
-  // the engine's input checks (the batch:: entry points check their own)
-  void check_inputs(long B, const double* q, const double* qd, const char* qd_name, const double* w,
-                    const char* w_name) const;
-  std::vector<double> scratch_;  // plant_step's split state
 };
 
 }  // namespace rbd

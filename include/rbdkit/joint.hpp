@@ -36,6 +36,18 @@ template <typename S> struct BodyDesc {
   Inertia<S> I;       // spatial inertia in the body frame (merged fixed links included)
 };
 
+// a body description in scalar T (a dual number, float): the constants converted, the structure kept
+template <typename T, typename S> RBD_HD void body_as(const BodyDesc<S>& b, BodyDesc<T>& o) {
+  o.parent = b.parent, o.type = b.type, o.q_idx = b.q_idx, o.v_idx = b.v_idx, o.nq = b.nq, o.nv = b.nv;
+  o.nv_subtree = b.nv_subtree, o.mimic = b.mimic;
+  o.mult = T(b.mult), o.offset = T(b.offset), o.pitch = T(b.pitch);
+  o.axis = {T(b.axis.x), T(b.axis.y), T(b.axis.z)};
+  for (int k = 0; k < 9; ++k) o.X_tree.R.m[k] = T(b.X_tree.R.m[k]), o.I.I.m[k] = T(b.I.I.m[k]);
+  o.X_tree.p = {T(b.X_tree.p.x), T(b.X_tree.p.y), T(b.X_tree.p.z)};
+  o.I.m = T(b.I.m);
+  o.I.h = {T(b.I.h.x), T(b.I.h.y), T(b.I.h.z)};
+}
+
 // device-copyable view of a model: sizes and a pointer to nb bodies
 template <typename S> struct ModelView {
   int nb, nq, nv;

@@ -96,18 +96,7 @@ class Model {
 
 template <typename S> std::vector<BodyDesc<S>> Model::bodies_as() const {
   std::vector<BodyDesc<S>> out(bodies.size());
-  for (size_t i = 0; i < bodies.size(); ++i) {
-    const BodyDesc<double>& b = bodies[i];
-    BodyDesc<S>& o = out[i];
-    o.parent = b.parent; o.type = b.type; o.q_idx = b.q_idx; o.v_idx = b.v_idx; o.nq = b.nq; o.nv = b.nv;
-    o.nv_subtree = b.nv_subtree; o.mimic = b.mimic;
-    o.mult = S(b.mult); o.offset = S(b.offset); o.pitch = S(b.pitch);
-    o.axis = {S(b.axis.x), S(b.axis.y), S(b.axis.z)};
-    for (int k = 0; k < 9; ++k) o.X_tree.R.m[k] = S(b.X_tree.R.m[k]), o.I.I.m[k] = S(b.I.I.m[k]);
-    o.X_tree.p = {S(b.X_tree.p.x), S(b.X_tree.p.y), S(b.X_tree.p.z)};
-    o.I.m = S(b.I.m);
-    o.I.h = {S(b.I.h.x), S(b.I.h.y), S(b.I.h.z)};
-  }
+  for (size_t i = 0; i < bodies.size(); ++i) body_as(bodies[i], out[i]);
   return out;
 }
 

@@ -6,9 +6,10 @@ unbatched arguments are broadcast against batched ones. Results carry the
 batch axis when any argument did.
 
 The registered operations (include/rbdkit/ops/registry.hpp: inverse and
-forward dynamics, M, M⁻¹, their gradients, the Lie-group operations, the
-integrators and the plant step, energies, the Coriolis matrix, centroidal
-quantities and the regressors) are generated from the C++ registry: each
+forward dynamics, M, M⁻¹, their first- and second-order derivatives, the
+Lie-group operations, the integrators, the plant step with its gradient and
+Hessian, kinematics, energies, centroidal quantities, the regressors, the
+costs and barriers: every operation) are generated from the C++ registry: each
 instance holds one compiled callable per operation, which parses, checks
 and allocates in C++ (python/src/bind_ops.cpp). The class attributes of the
 same names carry their signatures and documentation.
@@ -20,14 +21,12 @@ import numpy as np
 
 from . import _core
 from ._checks import Batch, check_choice, check_values
-from ._integrators import IntegratorsMixin
 from ._model import Model
-from ._kinematics import KinematicsMixin
 
 GRAVITY = -9.81
 
 
-class RBD(KinematicsMixin, IntegratorsMixin):
+class RBD:
     """Rigid-body dynamics of a Model (see the module doc for shapes)."""
 
     def __init__(self, model):
@@ -51,25 +50,6 @@ class RBD(KinematicsMixin, IntegratorsMixin):
 
     def _v(self, b, v, name):
         return b.add(v, name, (self.nv,), ("nv",))
-
-    def _fext(self, b, f_ext, name="f_ext"):
-        if f_ext is None or (isinstance(f_ext, (list, tuple)) and len(f_ext) == 0):
-            return None
-        return b.add(f_ext, name, (self.nb, 6), ("nb", "6"))
-
-    # ---- configuration space (Lie-group operations)
-    def d2Integrate(self, q, v, arg1="v", arg2="v"):
-        """Second derivative of integrate: H (nv, nv, nv) with
-        H[i, j, k] = ∂ dIntegrate(q, v, arg1)[i, j] / ∂x_k, x = arg2 ('q':
-        a tangent step through integrate(q, ·), 'v': v itself). Exact (dual
-        numbers through the closed-form Jacobians)."""
-        a1 = check_choice(arg1, "arg1", ("q", "v"))
-        a2 = check_choice(arg2, "arg2", ("q", "v"))
-        b = Batch()
-        iq, iv = self._q(b, q), self._v(b, v, "v")
-        H = b.out(self.nv, self.nv, self.nv)
-        _core.d2integrate(self._m, b.get(iq), b.get(iv), a1, a2, H)
-        return b.ret(H)
 
     # ---- timing (for reports; benchmarks live in bench/)
     def time_per_call(self, op, q, qd, tau, iters=2000):

@@ -19,11 +19,4 @@ using rbd_py::width;
 
 void bind_integrators(nb::module_& m) {
   m.def("integrator_from_name", &rbd::integrator_from_name, "name"_a);
-  m.def("plant_step_hessian",
-        [](const Model& md, In q, In v, In u, double dt, double g, int type, Out x, Out AB, Out H, int conv) {
-          nb::gil_scoped_release r;
-          rbd::batch::plant_step_hessian(md, static_cast<long>(q.shape(0)), q.data(), v.data(), u.data(), dt, g,
-                                         type, x.data(), AB.data(), H.data(), conv);
-        },
-        "model"_a, "q"_a, "v"_a, "u"_a, "dt"_a, "gravity"_a, "type"_a, "x"_a, "AB"_a, "H"_a, "convention"_a = 0);
 }

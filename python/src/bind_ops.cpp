@@ -81,6 +81,23 @@ PyObject* fail(PyObject* type, const std::string& msg) {
 
 const char* type_name(PyObject* o) { return Py_TYPE(o)->tp_name; }
 
+// the UTF-8 text of a str for a message: "?" where it has none (a lone surrogate)
+std::string text_of(PyObject* s) {
+  const char* t = s ? PyUnicode_AsUTF8(s) : nullptr;
+  if (!t) PyErr_Clear();
+  return t ? t : "?";
+}
+
+// the UTF-8 text of a str argument: false with a ValueError naming `name` where it has none
+bool utf8_of(PyObject* s, const char* name, std::string& out) {
+  const char* t = PyUnicode_AsUTF8(s);
+  if (t) return out = t, true;
+  PyErr_Clear();
+  fail(PyExc_ValueError, std::string(name) + ": expected a name in valid UTF-8, got a str that has none "
+                                             "(a lone surrogate)");
+  return false;
+}
+
 // ---------------------------------------------------------------- the callable
 
 struct OpFn {
@@ -121,7 +138,7 @@ PyArrayObject* as_array(PyObject* o, const char* name, int type, Refs& refs, PyA
     PyObject *t, *v, *tb;
     PyErr_Fetch(&t, &v, &tb);
     PyObject* s = v ? PyObject_Str(v) : nullptr;
-    std::string why = s ? PyUnicode_AsUTF8(s) : "not convertible";
+    std::string why = s ? text_of(s) : "not convertible";
     Py_XDECREF(s), Py_XDECREF(t), Py_XDECREF(v), Py_XDECREF(tb);
     fail(PyExc_TypeError, std::string(name) + ": expected a real numeric array (" + why + ")");
     return nullptr;
@@ -131,7 +148,7 @@ PyArrayObject* as_array(PyObject* o, const char* name, int type, Refs& refs, PyA
   const int t = PyArray_TYPE(a);
   if (t == NPY_BOOL || !(PyTypeNum_ISFLOAT(t) || PyTypeNum_ISINTEGER(t))) {
     PyObject* d = PyObject_Str(reinterpret_cast<PyObject*>(PyArray_DESCR(a)));
-    std::string dn = d ? PyUnicode_AsUTF8(d) : "?";
+    std::string dn = text_of(d);
     Py_XDECREF(d);
     fail(PyExc_TypeError, std::string(name) + ": expected a real numeric array (float or int), got dtype " + dn);
     return nullptr;
@@ -179,7 +196,7 @@ int as_choice(PyObject* o, const char* name, const char* const* choices) {
   std::string list;
   for (int k = 0; choices[k]; ++k) list += std::string(k ? ", " : "") + "'" + choices[k] + "'";
   PyObject* r = PyObject_Repr(o);
-  std::string got = r ? PyUnicode_AsUTF8(r) : "?";
+  std::string got = text_of(r);
   Py_XDECREF(r);
   fail(PyExc_ValueError, std::string(name) + ": expected one of " + list + ", got " + got);
   return -1;
@@ -197,7 +214,8 @@ bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k,
         } else {
           std::vector<std::string> names;
           if (PyUnicode_Check(o)) {
-            names.push_back(PyUnicode_AsUTF8(o));
+            names.emplace_back();
+            if (!utf8_of(o, a.name, names.back())) return false;
           } else if (PyList_Check(o) || PyTuple_Check(o)) {
             for (Py_ssize_t j = 0; j < PySequence_Fast_GET_SIZE(o); ++j) {
               PyObject* n = PySequence_Fast_GET_ITEM(o, j);
@@ -206,7 +224,8 @@ bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k,
                                           type_name(n));
                 return false;
               }
-              names.push_back(PyUnicode_AsUTF8(n));
+              names.emplace_back();
+              if (!utf8_of(n, a.name, names.back())) return false;
             }
           } else {
             fail(PyExc_TypeError, std::string(a.name) + ": expected a list of joint names (str), got " + type_name(o));
@@ -237,7 +256,8 @@ bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k,
                                   type_name(o));
         return false;
       }
-      const std::string name = PyUnicode_AsUTF8(o);
+      std::string name;
+      if (!utf8_of(o, a.name, name)) return false;
       try {
         if (a.kind == ops::kFrame) {
           c.choice[k] = m.frame_index(name);
@@ -291,7 +311,8 @@ bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k,
                                   type_name(o));
         return false;
       }
-      const std::string s = PyUnicode_AsUTF8(o);
+      std::string s;
+      if (!utf8_of(o, a.name, s)) return false;
       try {
         c.choice[k] = a.kind == ops::kIntegrator ? rbd::integrator_from_name(s) : rbd::convention_from_name(s);
       } catch (const std::exception& e) {
@@ -337,7 +358,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       }
       if (k == op.n_args) {
         PyObject* r = PyObject_Repr(key);
-        std::string s = r ? PyUnicode_AsUTF8(r) : "?";
+        std::string s = text_of(r);
         Py_XDECREF(r);
         return fail(PyExc_TypeError, std::string(op.name) + "() got an unexpected keyword argument " + s);
       }
@@ -434,12 +455,12 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       B = d[0], source = k;
     }
     // float64 values bound for float32: within float32's bounds, then rounded (bounds may be
-    // infinite: ops::check_call checks them after rounding)
-    if (wide && a.check != ops::kLowerBound && a.check != ops::kUpperBound) {
+    // infinite: ops::check_call checks those after rounding, a finite one here)
+    if (wide) {
       try {
         const long n = ops::arg_values(a, m, c.n_ee);
         ops::check_bounded(static_cast<const double*>(PyArray_DATA(wide)), batched ? d[0] : 1, n, a.name, batched,
-                           rbd::kMaxInputF32);
+                           rbd::kMaxInputF32, a.check == ops::kLowerBound || a.check == ops::kUpperBound);
       } catch (const std::exception& e) {
         return fail(PyExc_ValueError, e.what());
       }

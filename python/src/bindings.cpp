@@ -129,10 +129,6 @@ NB_MODULE(_core, m) {
     nb::gil_scoped_release r;
     rbd::batch::integrate(md, batch_of(q), q.data(), v.data(), out.data());
   });
-  m.def("d2integrate", [](const Model& md, In q, In v, int arg1, int arg2, Out H) {
-    nb::gil_scoped_release r;
-    rbd::batch::d2integrate(md, batch_of(q), q.data(), v.data(), arg1, arg2, H.data());
-  });
 
   // ---- per-call timing of the core algorithms, no checks, no Python in the loop
   m.def("time_per_call",

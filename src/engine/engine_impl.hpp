@@ -160,8 +160,7 @@ template <typename Op> constexpr bool has_convention() {
 // is compiled with those as constants (the MuJoCo path and the f_ext terms
 // drop out of the common case)
 template <typename Op, bool Defaults, typename P>
-RBD_ENGINE_KERNEL __attribute__((noinline)) bool run_pack(const ModelView<P>& m, Workspace<P>& w,
-                                                         const ops::OpArgs<P>& a) {
+inline bool run_kernel(const ModelView<P>& m, Workspace<P>& w, const ops::OpArgs<P>& a) {
   if constexpr (Defaults) {
     ops::OpArgs<P> d = a;
     for (int k = 0; k < Op::spec.n_args; ++k) {
@@ -172,6 +171,16 @@ RBD_ENGINE_KERNEL __attribute__((noinline)) bool run_pack(const ModelView<P>& m,
   } else {
     return Op::run(m, w, a);
   }
+}
+template <typename Op, bool Defaults, typename P>
+RBD_ENGINE_KERNEL __attribute__((noinline)) bool run_pack(const ModelView<P>& m, Workspace<P>& w,
+                                                         const ops::OpArgs<P>& a) {
+  return run_kernel<Op, Defaults>(m, w, a);
+}
+// a kernel the spec marks kCalled: compiled as written (ops/op.hpp, OpKernel)
+template <typename Op, bool Defaults, typename P>
+__attribute__((noinline)) bool run_pack_called(const ModelView<P>& m, Workspace<P>& w, const ops::OpArgs<P>& a) {
+  return run_kernel<Op, Defaults>(m, w, a);
 }
 
 // the registered operation Op (ops/registry.hpp) on B knot points: the
@@ -245,7 +254,9 @@ template <typename T, typename Op> struct Job {
           }
         }
         bool ok;
-        if constexpr (has_convention<Op>())
+        if constexpr (Op::spec.kernel == ops::kCalled)
+          ok = run_pack_called<Op, false>(e->mv, buf.ws, a);
+        else if constexpr (has_convention<Op>())
           ok = defaults ? run_pack<Op, true>(e->mv, buf.ws, a) : run_pack<Op, false>(e->mv, buf.ws, a);
         else
           ok = run_pack<Op, false>(e->mv, buf.ws, a);

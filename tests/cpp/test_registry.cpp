@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "rbdkit/builder.hpp"
 #include "rbdkit/centroidal_api.hpp"
 #include "rbdkit/costs_api.hpp"
 #include "rbdkit/derivatives_api.hpp"
@@ -143,7 +144,7 @@ double float32_bound(const ops::OpSpec& op) {
   // central differences with eps = 1e-5 in float32: about two digits are left
   if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 1e-1;
   if (n == "forward_dynamics_parameter_gradient") return 2e-3;  // M⁻¹ applied, as minv's family
-  if (f == "fdsva_so") return 5e-2;
+  if (f == "fdsva_so" || f == "integrator_hessian") return 5e-2;
   if (f == "osc") return 2e-2;  // (J M⁻¹ Jᵀ)⁻¹: cond(M) and cond(J M⁻¹ Jᵀ) both
   return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
 }
@@ -197,7 +198,7 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
         "inverse_dynamics_regressor_gradient", "forward_dynamics_parameter_gradient", "quadratic_state_cost_tangent",
         "com_cost", "momentum_cost", "forward_kinematics", "frame_placement", "frame_jacobian", "frame_jacobian_dot",
         "ee_pos_cost", "end_effector_pose", "end_effector_pose_gradient", "end_effector_pose_hessian_analytic",
-        "osc_inertia"}) {
+        "osc_inertia", "plant_step_hessian", "d2Integrate", "end_effector_pose_hessian"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const ops::OpSpec& op = *ops::op_table()[id].spec;
@@ -314,13 +315,25 @@ TEST_P(RegistryModels, SerialLoopEqualsTheBatchEntryPoints) {
       rbd::batch::frame_jacobian(m, B, in_of(0), in.call.choice[1], in.call.choice[2], ref.data());
     } else if (n == "frame_jacobian_dot") {
       rbd::batch::frame_jacobian_dot(m, B, in_of(0), in_of(1), in.call.choice[2], in.call.choice[3], ref.data());
+    } else if (n == "d2Integrate") {  // arg1, arg2 = 'v', 'v' (the defaults)
+      rbd::batch::d2integrate(m, B, in_of(0), in_of(1), 1, 1, ref.data());
     } else if (n.rfind("end_effector_pose", 0) == 0) {  // the leaf bodies, each sample's tool points
       rbd::EndEffectors ee;
       ee.bodies = in.ee;
-      ee.offsets = in_of(n == "end_effector_pose_hessian_analytic" ? 1 : 2);
+      ee.offsets = in_of(n.rfind("end_effector_pose_hessian", 0) == 0 ? 1 : 2);
       if (n == "end_effector_pose") rbd::batch::end_effector_pose(m, B, in_of(0), ee, ref.data());
       else if (n == "end_effector_pose_gradient") rbd::batch::end_effector_pose_gradient(m, B, in_of(0), ee, ref.data());
+      else if (n == "end_effector_pose_hessian") rbd::batch::end_effector_pose_hessian(m, B, in_of(0), ee, ref.data());
       else rbd::batch::end_effector_pose_hessian_analytic(m, B, in_of(0), ee, ref.data());
+    } else if (n == "plant_step_hessian") {  // x split into q and qd; euler, Pinocchio's convention
+      const long nx = m.nq + nv;
+      std::vector<double> q(B * m.nq), qd(B * nv), xn(B * nx), AB(B * 6 * nv * nv);
+      for (long s = 0; s < B; ++s) {
+        std::copy_n(in_of(0) + s * nx, m.nq, q.data() + s * m.nq);
+        std::copy_n(in_of(0) + s * nx + m.nq, nv, qd.data() + s * nv);
+      }
+      rbd::batch::plant_step_hessian(m, B, q.data(), qd.data(), in_of(1), in.call.real[2], -9.81, rbd::kEuler,
+                                     xn.data(), AB.data(), ref.data());
     } else if (n == "osc_inertia") {
       rbd::EndEffectors ee;
       ee.bodies = in.ee;
@@ -568,8 +581,64 @@ TEST(Registry, RequirementsAreChecked) {
                                            : "eps: expected a positive finite-difference step, got";
         EXPECT_EQ(msg.rfind(want, 0), 0u) << msg;
       }
+      // a step that float32 rounds to 0
+      in.call.real[k] = 1e-50;
+      const std::string msg = message([&] {
+        if (std::string(dtype) == "float64") run<double>(h, id, in);
+        else run<float>(h, id, in);
+      });
+      if (std::string(dtype) == "float32")
+        EXPECT_EQ(msg.rfind("eps: expected a positive finite-difference step of at least 1.4013e-45 (the handle's "
+                            "dtype rounds it to 0), got 1e-50", 0), 0u) << msg;
+      else
+        EXPECT_EQ(msg, "") << msg;
     }
   }
+}
+
+// the outputs every surface asks for (the kernels write them unconditionally)
+// are required: a C++ caller passing null gets an error naming the output,
+// not a crash; and a frame index on a model without frames says so
+TEST(Registry, NullOutputsAndMissingFramesAreRefused) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  int checked = 0;
+  for (const char* dtype : {"float64", "float32"}) {
+    rbd::Handle h(iiwa, {}, 2, dtype);
+    for (const ops::OpEntry& e : ops::op_table()) {
+      const ops::OpSpec& op = *e.spec;
+      const unsigned needed = ops::required_outputs(op);
+      if (needed == 0) continue;  // inverse_dynamics_gradient: dtau or its halves
+      int first = 0;
+      while (!(needed >> first & 1u)) ++first;
+      const Inputs in = make_inputs(iiwa, op, 2, 1, false);
+      std::string msg;
+      try {
+        if (std::string(dtype) == "float64") run<double>(h, e.id, in, ~needed);
+        else run<float>(h, e.id, in, ~needed);
+      } catch (const std::invalid_argument& err) {
+        msg = err.what();
+      }
+      EXPECT_EQ(msg, std::string(op.name) + ": output " + op.out[first].name + ": expected an array, got nothing (null)");
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 2 * (static_cast<int>(ops::op_table().size()) - 1));
+  rbd::ModelBuilder b("no_frames");
+  rbd::JointSpec j;
+  j.name = "j", j.type = "revolute";
+  b.add_body(-1, j, "link", rbd::rigid_inertia(1.0, {0, 0, 0.1}, rbd::Mat3<double>::identity()));
+  const Model bare = b.build();
+  ASSERT_TRUE(bare.frames.empty());
+  rbd::Handle hb(bare);
+  const int fp = ops::find_op("frame_placement");
+  const Inputs in = make_inputs(bare, *ops::op_table()[fp].spec, 1, 1, false);
+  std::string msg;
+  try {
+    run<double>(hb, fp, in);
+  } catch (const std::invalid_argument& err) {
+    msg = err.what();
+  }
+  EXPECT_EQ(msg, "frame_name: the model has no frames");
 }
 
 // a log barrier outside its bounds: +inf and NaN derivatives in that sample's

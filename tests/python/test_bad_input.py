@@ -94,6 +94,7 @@ METHODS = {
     "end_effector_pose": ("q", "ee_offsets"),
     "end_effector_pose_gradient": ("q", "ee_offsets"),
     "end_effector_pose_hessian_analytic": ("q", "offsets"),
+    "end_effector_pose_hessian": ("q", "offsets"),
     "osc_inertia": ("q", "ee_offsets"),
 }
 FRAME_METHODS = ("frame_placement", "frame_jacobian", "frame_jacobian_dot")
@@ -128,7 +129,8 @@ OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_s
             ("forward_dynamics", "f_ext"), ("inverse_dynamics_regressor", "qdd"),
             ("inverse_dynamics_regressor_gradient", "qdd"), ("ee_pos_cost", "ee_offset"),
             ("end_effector_pose", "ee_offsets"), ("end_effector_pose_gradient", "ee_offsets"),
-            ("end_effector_pose_hessian_analytic", "offsets"), ("osc_inertia", "ee_offsets")}
+            ("end_effector_pose_hessian_analytic", "offsets"), ("end_effector_pose_hessian", "offsets"),
+            ("osc_inertia", "ee_offsets")}
 WITH_GRAVITY = ("inverse_dynamics", "aba", "forward_dynamics", "generalized_gravity", "nonlinear_effects",
                 "inverse_dynamics_gradient", "forward_dynamics_gradient", "inverse_dynamics_fpass",
                 "inverse_dynamics_gradient_fpass_dq", "inverse_dynamics_gradient_fpass_dqd",
@@ -387,6 +389,36 @@ def test_bad_barrier_bounds(rbd, hyq, method):
             getattr(rbd, method)(**valid_args(hyq, method), mu=bad)
     with pytest.raises(TypeError, match="missing required argument 'mu'"):
         getattr(rbd, method)(**valid_args(hyq, method))
+
+
+@pytest.mark.parametrize("method", BARRIERS)
+def test_bad_barrier_bounds_float32(hyq, method):
+    # a float32 handle: a finite bound beyond float32's input bound is refused before it rounds to inf
+    h = rbdkit.Handle(hyq, dtype="float32")
+    for arg in ("lower", "upper"):
+        args = valid_args(hyq, method)
+        args[arg] = np.array(args[arg])
+        args[arg][-1] = 1e39 if arg == "upper" else -1e39
+        with pytest.raises(ValueError, match=rf"^{arg}: expected values of magnitude at most 1e\+15"):
+            h.__getattribute__(method)(mu=0.1, **args)
+    np.testing.assert_array_equal(np.isfinite(h.__getattribute__(method)(mu=0.1, **valid_args(hyq, method))[0]),
+                                  True)  # infinite bounds are no bound
+
+
+def test_names_without_utf8(rbd, hyq):
+    # a str with a lone surrogate has no UTF-8 text: a ValueError naming the argument
+    q = hyq.neutral()
+    bad = "lf_\ud800"
+    with pytest.raises(ValueError, match="^frame_name: expected a name in valid UTF-8"):
+        rbd.frame_placement(q, frame_name=bad)
+    with pytest.raises(ValueError, match="^ee_joint_names: expected a name in valid UTF-8"):
+        rbd.end_effector_pose(q, ee_joint_names=[bad])
+    with pytest.raises(ValueError, match="^ee_joint_names: expected a name in valid UTF-8"):
+        rbd.end_effector_pose(q, ee_joint_names=bad)
+    with pytest.raises(ValueError, match="^integrator_type: expected a name in valid UTF-8"):
+        rbd.integrator(q, np.zeros(hyq.nv), np.zeros(hyq.nv), 0.01, integrator_type=bad)
+    with pytest.raises(ValueError, match="^reference_frame: expected one of"):
+        rbd.frame_jacobian(q, frame_name="lf_lowerleg", reference_frame=bad)
 
 
 @pytest.mark.parametrize("method", WITH_GRAVITY)

@@ -739,5 +739,5 @@ def test_bad_output_convention():
     qb[3:7] *= 2
     with pytest.raises(ValueError, match=r"^q: the quaternion of joint .*w x y z, MuJoCo layout"):
         rbd.integrator(qb, v, u, 0.01, output_convention="mujoco")
-    with pytest.raises(ValueError, match=r"^q: the quaternion of joint .*w x y z, MuJoCo layout"):
+    with pytest.raises(ValueError, match=r"^x: the quaternion of joint .*w x y z, MuJoCo layout"):
         rbd.plant_step_hessian(np.concatenate([qb, v]), u, 0.01, output_convention="mujoco")

@@ -169,6 +169,9 @@ enum OpScratch : unsigned char {
   kScratchComCost,         // com_cost_scratch(nq, nv)
   kScratchMomentumCost,    // momentum_cost_scratch(nq, nv)
   kScratchEePosCost,       // ee_pos_cost_scratch(nq, nv)
+  kScratchIntegratorHessian,  // integrator_hessian_scratch_values(nq, nv) + nq + nv + 6 nv²
+  kScratchD2Integrate,        // 2 (2 nq + 2 nv + nv²): dual numbers
+  kScratchEeHessianDual,      // ee_hessian_dual_scratch(nb, nq, nv): a model and a workspace in dual numbers
 };
 
 // what an operation's outputs may hold
@@ -181,6 +184,13 @@ enum OpOutputs : unsigned char {
 enum OpModel : unsigned char {
   kAnyModel,
   kNoMimic,  // a model without mimic joints (the direct M⁻¹'s passes)
+};
+
+// how the engine compiles an operation's kernel for a pack
+enum OpKernel : unsigned char {
+  kFlattened,  // everything it calls inlined into one function (the engine's speed)
+  kCalled,     // compiled as written: a kernel too large to flatten in reasonable time (the jets of the
+               // step Hessian, the dual-number passes), whose cost is its arithmetic, not its calls
 };
 
 struct OpSpec {
@@ -199,7 +209,16 @@ struct OpSpec {
   OpFailure failure;
   OpModel model = kAnyModel;
   OpOutputs outputs = kFiniteOutputs;
+  // outputs of `returns` that a caller may leave null all the same (the kernel
+  // skips them); the other returned ones are required (ops::check_call)
+  unsigned optional_outputs = 0;
+  OpKernel kernel = kFlattened;
 };
+
+// the outputs a call must provide: those every surface asks for
+constexpr unsigned required_outputs(const OpSpec& op) {
+  return op.returns & (op.handle_returns ? op.handle_returns : op.returns) & ~op.optional_outputs;
+}
 
 // one sample's call, indexed by argument (the spec's order): an array's
 // values in `in` (null where an optional one is absent), a real parameter in

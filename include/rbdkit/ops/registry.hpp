@@ -21,6 +21,7 @@
 #include "../algorithms/crba.hpp"
 #include "../algorithms/energy.hpp"
 #include "../algorithms/fdsva_so.hpp"
+#include "../algorithms/integrator_hessian.hpp"
 #include "../algorithms/integrators.hpp"
 #include "../algorithms/kinematics.hpp"
 #include "../algorithms/minv.hpp"
@@ -32,6 +33,8 @@
 #include "../configuration.hpp"
 #include "op.hpp"
 
+#include <cstdint>
+#include <new>
 #include <type_traits>
 
 namespace rbd {
@@ -155,7 +158,7 @@ struct InverseDynamicsGradient {
       {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), optional_array("qdd", shape(kNv)),
        real("gravity", kGravity), optional_array("f_ext", shape(kNb, 6))},
       3, {{"dtau", shape(kNv, k2Nv)}, {"dtau_dq", shape(kNv, kNv)}, {"dtau_dqd", shape(kNv, kNv)}},
-      0b001, 0, kFull, kScratch2NvNv, kNotPositiveDefinite};
+      0b001, 0, kFull, kScratch2NvNv, kNotPositiveDefinite, kAnyModel, kFiniteOutputs, 0b001};
   // dtau = [dtau_dq | dtau_dqd]; the halves alone when asked for them (Engine::inverse_dynamics_gradient)
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     const int nv = m.nv;
@@ -445,6 +448,42 @@ struct DIntegrate {
   }
 };
 
+struct D2Integrate {
+  static constexpr OpSpec spec = {
+      "d2Integrate", "configuration", "configuration",
+      "Second derivative of integrate: H (nv, nv, nv) with H[i, j, k] = ∂ dIntegrate(q, v, arg1)[i, j] / ∂x_k, x = "
+      "arg2 ('q': a tangent step through integrate(q, ·), 'v': v itself). Exact (dual numbers through the "
+      "closed-form Jacobians).",
+      4,
+      {array("q", shape(kNq), kConfiguration), array("v", shape(kNv)), param("arg1", kChoice, 1, kWrtQV),
+       param("arg2", kChoice, 1, kWrtQV)},
+      1, {{"H", shape(kNv, kNv, kNv)}}, 0b1, 0, kLinear, kScratchD2Integrate, kNotPositiveDefinite, kAnyModel,
+      kFiniteOutputs, 0, kCalled};
+  // one dual pass per direction k of arg2: the ε parts of dIntegrate are H[:, :, k]
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    using D = Dual<S>;
+    const int nq = m.nq, nv = m.nv, arg1 = a.choice[2], arg2 = a.choice[3];
+    D* q = reinterpret_cast<D*>(a.scratch);  // (nq) q, then q ⊕ ε e_k (nq), v + ε e_k (nv), the step (nv), J (nv²)
+    D* qk = q + nq;
+    D* vk = qk + nq;
+    D* step = vk + nv;
+    D* J = step + nv;
+    for (int i = 0; i < nq; ++i) q[i] = D(a.in[0][i]);
+    for (int k = 0; k < nv; ++k) {
+      for (int i = 0; i < nv; ++i) vk[i] = D(a.in[1][i], arg2 == 1 && i == k ? S(1) : S(0));
+      if (arg2 == 0) {
+        for (int i = 0; i < nv; ++i) step[i] = D(S(0), i == k ? S(1) : S(0));
+        integrate(m, static_cast<const D*>(q), static_cast<const D*>(step), qk);
+      } else {
+        for (int i = 0; i < nq; ++i) qk[i] = q[i];
+      }
+      dintegrate(m, static_cast<const D*>(qk), static_cast<const D*>(vk), arg1, J);
+      for (int i = 0; i < nv * nv; ++i) a.out[0][i * nv + k] = J[i].d;
+    }
+    return true;
+  }
+};
+
 struct DDifference {
   static constexpr OpSpec spec = {
       "dDifference", "configuration", "configuration",
@@ -514,6 +553,28 @@ struct PlantStepGradient {
     S* x = a.out[0] ? a.out[0] : a.scratch + integrator_gradient_scratch_values(m.nq, m.nv);
     return integrator_gradient(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
                                x, x + m.nq, a.out[1], a.scratch, a.choice[6]);
+  }
+};
+
+struct PlantStepHessian {
+  static constexpr OpSpec spec = {
+      "plant_step_hessian", "plant_step_hessian", "integrator_hessian",
+      "H (2·nv, 3·nv, 3·nv): the second-order sensitivity of plant_step. With z = [δq; δqd; δu] (3·nv), the input "
+      "q = q0 ⊕ δq, qd = qd0 + δqd, u = u0 + δu, and the output read in the chart at the nominal output, ψ(z) = "
+      "[q⁺(z) ⊖ q⁺(0); qd⁺(z) - qd⁺(0)], H[i, j, k] = ∂²ψ_i/∂z_j∂z_k (symmetric in j, k), so that x⁺(z) = x⁺(0) ⊕ "
+      "(AB z + ½ H[z, z] + O(|z|³)) with AB = plant_step_gradient (x⁺ and AB are the first two outputs). "
+      "output_convention=\"mujoco\": x, u in MuJoCo's qpos/qvel layout and ⊕ / ⊖ MuJoCo's. No f_ext (the "
+      "second-order forward dynamics take no external forces).",
+      6,
+      {array("x", shape(kNx), kConfiguration), array("u", shape(kNv)), param("dt", kTimeStep, kRequired),
+       param("integrator_type", kIntegrator, 0), real("gravity", kGravity), param("output_convention", kConvention, 0)},
+      3, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}, {"H", shape(k2Nv, k3Nv, k3Nv)}}, 0b100, 0, kFull,
+      kScratchIntegratorHessian, kStepFailed, kAnyModel, kFiniteOutputs, 0, kCalled};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    S* x = a.out[0] ? a.out[0] : a.scratch + integrator_hessian_scratch_values(m.nq, m.nv);
+    S* AB = a.out[1] ? a.out[1] : x + m.nq + m.nv;
+    return integrator_hessian(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.real[2], a.real[4], x,
+                              x + m.nq, AB, a.out[2], a.scratch, a.choice[5]);
   }
 };
 
@@ -961,6 +1022,59 @@ struct EndEffectorPoseGradient {
   }
 };
 
+// scratch of the dual-number end-effector Hessian, in values of any kernel scalar S (sizeof(S) >= 4, so that
+// float counts the most values): the model and a linear workspace in Dual<S> (twice their float bytes, the
+// padding of its 16-byte-aligned arrays and the alignment of the start), then 2 nq + 7 nv dual values
+RBD_HD long ee_hessian_dual_scratch(int nb, int nq, int nv) {
+  const unsigned long bytes = workspace_bytes<float>(nb, nv, kLinearWorkspace) + sizeof(BodyDesc<float>) * nb;
+  return static_cast<long>(2 * bytes / 4) + 160 + 2L * (2 * nq + 7 * nv);
+}
+
+struct EndEffectorPoseHessian {
+  static constexpr OpSpec spec = {
+      "end_effector_pose_hessian", "end_effector_pose_hessian", "kinematics",
+      "Hessian (n_ee, 6, nv, nv) of end_effector_pose, H[e, r, j, k] = ∂gradient[e, r, k]/∂δ_j, by forward-mode "
+      "dual numbers through the analytic gradient (exact; one pass per tangent direction). Not symmetric within "
+      "free-flyer and spherical joints. Note the argument order: offsets before ee_joint_names.",
+      3,
+      {array("q", shape(kNq), kConfiguration), optional_array("offsets", shape(kNee, 3)),
+       end_effectors("ee_joint_names")},
+      1, {{"H", shape(kNee, 6, kNv, kNv)}}, 0b1, 0, kLinear, kScratchEeHessianDual, kNotPositiveDefinite, kAnyModel,
+      kFiniteOutputs, 0, kCalled};
+  // direction j: the gradient at q ⊕ ε e_j in dual numbers; its ε parts are H[e, :, j, :]
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>&, const OpArgs<S>& a) {
+    using D = Dual<S>;
+    const int nb = m.nb, nq = m.nq, nv = m.nv;
+    // carve the scratch (16-byte aligned): the model in dual numbers, its workspace, the dual arrays
+    std::uintptr_t at = (reinterpret_cast<std::uintptr_t>(a.scratch) + 15u) & ~std::uintptr_t(15);
+    BodyDesc<D>* body = reinterpret_cast<BodyDesc<D>*>(at);
+    for (int i = 0; i < nb; ++i) body_as(m.body[i], *new (body + i) BodyDesc<D>());
+    at += (sizeof(BodyDesc<D>) * nb + 15ul) & ~15ul;
+    const ModelView<D> md = {nb, nq, nv, m.has_mimic, body};
+    Workspace<D> w = carve_workspace<D>(reinterpret_cast<void*>(at), nb, nv, kLinearWorkspace);
+    at += workspace_bytes<D>(nb, nv, kLinearWorkspace);
+    D* q = reinterpret_cast<D*>(at);  // q (nq), q ⊕ ε e_j (nq), the step (nv), G (6 nv)
+    D* qj = q + nq;
+    D* step = qj + nq;
+    D* G = step + nv;
+    for (int i = 0; i < nq; ++i) q[i] = D(a.in[0][i]);
+    for (int j = 0; j < nv; ++j) {
+      for (int i = 0; i < nv; ++i) step[i] = D(S(0), i == j ? S(1) : S(0));
+      integrate(md, static_cast<const D*>(q), static_cast<const D*>(step), qj);
+      forward_kinematics(md, w, static_cast<const D*>(qj), static_cast<const D*>(nullptr));
+      for (int e = 0; e < a.n_ee; ++e) {
+        const S* o = a.in[1] ? a.in[1] + 3 * e : nullptr;
+        const Vec3<D> p = o ? Vec3<D>{D(o[0]), D(o[1]), D(o[2])} : Vec3<D>{D(S(0)), D(S(0)), D(S(0))};
+        end_effector_pose_gradient(md, w, a.ee[e], p, G);
+        S* He = a.out[0] + 6L * nv * nv * e;
+        for (int r = 0; r < 6; ++r)
+          for (int k = 0; k < nv; ++k) He[(r * nv + j) * nv + k] = G[r * nv + k].d;
+      }
+    }
+    return true;
+  }
+};
+
 struct EndEffectorPoseHessianAnalytic {
   static constexpr OpSpec spec = {
       "end_effector_pose_hessian_analytic", "end_effector_pose_hessian", "kinematics",
@@ -1155,7 +1269,8 @@ using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crb
                       QuadraticInputCost, QuadraticStateCostTangent, ComCost, MomentumCost, JointPositionBarrier,
                       JointVelocityBarrier, JointTorqueBarrier, ForwardKinematics, FramePlacement, FrameJacobian,
                       FrameJacobianDot, EePosCost, EndEffectorPose, EndEffectorPoseGradient,
-                      EndEffectorPoseHessianAnalytic, OscInertia>;
+                      EndEffectorPoseHessianAnalytic, OscInertia, PlantStepHessian, D2Integrate,
+                      EndEffectorPoseHessian>;
 
 }  // namespace ops
 }  // namespace rbd

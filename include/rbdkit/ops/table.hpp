@@ -62,7 +62,10 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
 // values (samples x n, float64) finite and of magnitude at most `bound`:
 // std::invalid_argument naming `name` (name[s] when batched) otherwise, in
 // check_call's words. For values about to be rounded to float32.
-void check_bounded(const double* x, long samples, long n, const char* name, bool batched, double bound);
+// non_finite_ok: inf and NaN pass (bounds that may be infinite: check_call
+// checks them after rounding); finite values still within `bound`.
+void check_bounded(const double* x, long samples, long n, const char* name, bool batched, double bound,
+                   bool non_finite_ok = false);
 
 // the serial loop: the kernel on each sample in double, on the caller's
 // workspace (of workspace_layout(op, m) or the full one) and scratch
