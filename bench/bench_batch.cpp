@@ -15,7 +15,7 @@
 // Counter per_knot_ns: wall time per knot point (real time / B).
 //
 // The rk4 step on Pinocchio's side: four aba stages chained by
-// pinocchio::integrate exactly as rbdkit's (algorithms/integrators.hpp);
+// pinocchio::integrate exactly as rbdkit's (plant/integrators.hpp);
 // its gradient: computeABADerivatives per stage, dIntegrate for the
 // retractions and the same chain rule in Eigen products.
 #include <benchmark/benchmark.h>
@@ -36,9 +36,9 @@
 
 #include <Eigen/Core>
 #include <rbdkit/algorithms/aba_derivatives.hpp>
-#include <rbdkit/algorithms/integrators.hpp>
-#include <rbdkit/dynamics.hpp>
-#include <rbdkit/engine.hpp>
+#include <rbdkit/plant/integrators.hpp>
+#include <rbdkit/batch/dynamics.hpp>
+#include <rbdkit/batch/engine.hpp>
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>

@@ -35,7 +35,7 @@
 #include <Eigen/Core>
 #include <rbdkit/algorithms/aba_derivatives.hpp>
 #include <rbdkit/algorithms/fdsva_so.hpp>
-#include <rbdkit/dynamics.hpp>
+#include <rbdkit/batch/dynamics.hpp>
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>

@@ -7,7 +7,7 @@
 // against Pinocchio in tests/python/test_centroidal.py.
 #include "rbdkit/algorithms/centroidal.hpp"
 #include "rbdkit/algorithms/energy.hpp"
-#include "rbdkit/dual.hpp"
+#include "rbdkit/spatial/dual.hpp"
 
 using namespace rbd;
 

@@ -1,13 +1,13 @@
 // cuda/integrator_hessian_check.cu — the step Hessian inside a __global__ kernel.
 //
 // Compiled (not run) by the build with nvcc, in double and float, so that a
-// host-only construct in algorithms/integrator_hessian.hpp (or in the nested
+// host-only construct in plant/integrator_hessian.hpp (or in the nested
 // dual numbers of its retraction jet) fails the build. The convention is a
 // kernel argument, so both policies (PinocchioStep and MujocoStep, with the
 // MuJoCo-coordinate acceleration tensors) are compiled. The CPU results are
 // checked in tests/cpp/test_integrator_hessian.cpp,
 // tests/python/test_step_hessian.py and tests/python/test_mujoco.py.
-#include "rbdkit/algorithms/integrator_hessian.hpp"
+#include "rbdkit/plant/integrator_hessian.hpp"
 
 using namespace rbd;
 

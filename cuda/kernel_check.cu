@@ -18,11 +18,11 @@
 #include "rbdkit/algorithms/aba.hpp"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/crba.hpp"
-#include "rbdkit/algorithms/integrators.hpp"
 #include "rbdkit/algorithms/minv.hpp"
 #include "rbdkit/algorithms/rnea.hpp"
-#include "rbdkit/configuration.hpp"
-#include "rbdkit/model.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/parsers/model.hpp"
+#include "rbdkit/plant/integrators.hpp"
 
 using namespace rbd;
 

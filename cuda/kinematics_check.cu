@@ -6,8 +6,8 @@
 // Pinocchio in tests/python/test_kinematics.py.
 #include "rbdkit/algorithms/kinematics.hpp"
 #include "rbdkit/algorithms/osc.hpp"
-#include "rbdkit/configuration.hpp"
-#include "rbdkit/dual.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/spatial/dual.hpp"
 
 using namespace rbd;
 

@@ -1,12 +1,12 @@
 // cuda/mujoco_check.cu — the MuJoCo output convention inside __global__ kernels.
 //
 // Compiled (not run) with nvcc in double and float, so that a host-only
-// construct in algorithms/mujoco_convention.hpp or the MujocoStep path of
-// algorithms/integrators.hpp fails the build. The CPU results are checked
+// construct in plant/mujoco_convention.hpp or the MujocoStep path of
+// plant/integrators.hpp fails the build. The CPU results are checked
 // against the mujoco package in tests/python/test_mujoco.py.
-#include "rbdkit/algorithms/costs.hpp"
-#include "rbdkit/algorithms/integrators.hpp"
-#include "rbdkit/workspace.hpp"
+#include "rbdkit/model/workspace.hpp"
+#include "rbdkit/plant/costs.hpp"
+#include "rbdkit/plant/integrators.hpp"
 
 using namespace rbd;
 

@@ -5,7 +5,7 @@
 // the build. The CPU results are checked against Pinocchio in
 // tests/python/test_regressor.py.
 #include "rbdkit/algorithms/regressor.hpp"
-#include "rbdkit/dual.hpp"
+#include "rbdkit/spatial/dual.hpp"
 
 using namespace rbd;
 

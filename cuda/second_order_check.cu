@@ -7,7 +7,7 @@
 // tests/python/test_second_order.py and tests/pinocchio_so/.
 #include "rbdkit/algorithms/fdsva_so.hpp"
 #include "rbdkit/algorithms/idsva_so.hpp"
-#include "rbdkit/dual.hpp"
+#include "rbdkit/spatial/dual.hpp"
 
 using namespace rbd;
 

@@ -43,7 +43,7 @@ if command -v ccache >/dev/null; then launcher=(ccache); fi
 san="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
 eigen=$(pkg-config --cflags eigen3 2>/dev/null || echo "-I/usr/include/eigen3")
 flags="-std=c++17 -O1 -g $san -fsanitize=fuzzer-no-link -Iinclude $eigen"
-lib_sources=(src/builder.cpp src/urdf.cpp src/model.cpp src/dynamics.cpp src/kinematics.cpp)
+lib_sources=(src/parsers/builder.cpp src/parsers/urdf.cpp src/parsers/model.cpp src/batch/dynamics.cpp src/batch/kinematics.cpp)
 mkdir -p "$out/obj"
 if [[ "$(cat "$out/flags" 2>/dev/null)" != "$CXX $flags" ]]; then rm -f "$out"/obj/*.o; fi
 echo "$CXX $flags" >"$out/flags"

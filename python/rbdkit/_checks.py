@@ -6,7 +6,7 @@ import numpy as np
 from . import _core
 
 # Input bounds (C++: rbd::kMaxInput, kMaxAngle, kMaxTimeStep in
-# include/rbdkit/dynamics.hpp): beyond MAX_INPUT the dynamics overflow
+# include/rbdkit/batch/dynamics.hpp): beyond MAX_INPUT the dynamics overflow
 # float64, beyond MAX_ANGLE (rad, revolute and helical joints) sin and cos
 # keep no precision; dt is at most MAX_TIME_STEP (s). (The float32 bounds,
 # rbd::kMaxInputF32 and kMaxAngleF32, are checked in C++.)

@@ -7,7 +7,7 @@ precision; every operation of rbdkit.RBD on batched arrays.
     h.crba(q)                    # ValueError: crba: this handle was not built with it; add 'crba' ...
 
 Algorithms, the operations each provides and their dependencies come from
-one table shared with the C++ rbd::Handle (include/rbdkit/handle.hpp,
+one table shared with the C++ rbd::Handle (include/rbdkit/handle/handle.hpp,
 `Handle.algorithm_table()`); selecting an algorithm brings what it requires
 (plant_step_hessian -> fdsva_so, com_cost -> com and ccrba, momentum_cost ->
 dccrba, integrator_gradient -> forward_dynamics_gradient, ...).

@@ -4,7 +4,7 @@ operations (include/rbdkit/ops/registry.hpp), bound by rbdkit.RBD itself.
 
 integrator_type: euler, semi_implicit_euler, midpoint, rk4, trapezoidal
 (explicit two-stage Heun) or constant_acceleration; see
-include/rbdkit/algorithms/integrators.hpp for the schemes.
+include/rbdkit/plant/integrators.hpp for the schemes.
 output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
 frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see _mujoco.py).
 """

@@ -12,7 +12,7 @@ mjd_transitionFD's A and B:
 
 A model without free or ball joints is unchanged. Default: "pinocchio"
 (quaternions x y z w, v = [v_lin; ω] in the body frame, ⊕ = integrate).
-See include/rbdkit/algorithms/mujoco_convention.hpp. The conversions
+See include/rbdkit/plant/mujoco_convention.hpp. The conversions
 between the conventions and MuJoCo's ⊕ / ⊖ (state_to_mujoco,
 state_from_mujoco, force_to_mujoco, force_from_mujoco, mujoco_integrate,
 mujoco_difference) are registered operations (include/rbdkit/ops/registry.hpp),

@@ -1,5 +1,5 @@
 """Trajectory optimisation on the plant layer: iLQR (Gauss–Newton) or full
-DDP, C++ core (include/rbdkit/solver.hpp).
+DDP, C++ core (include/rbdkit/solver/solver.hpp).
 
     import rbdkit
     model = rbdkit.robots.load("iiwa")
@@ -126,7 +126,7 @@ def solve_trajectory(model, x0, horizon, dt, integrator_type="rk4", *, gravity=G
     handle: an rbdkit.Handle whose plant_step_gradient (and plant_step_hessian)
     supply the derivatives. callback(record) after every iteration.
     options: mu_init, mu_min, mu_factor, reg_init, reg_min, reg_max, reg_factor,
-    tol_cost, tol_grad, line_search_steps (include/rbdkit/solver.hpp).
+    tol_cost, tol_grad, line_search_steps (include/rbdkit/solver/solver.hpp).
     Returns a TrajectoryResult."""
     if not isinstance(model, Model):
         raise TypeError(f"model: expected an rbdkit.Model, got {type(model).__name__}")

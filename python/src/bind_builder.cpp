@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "rbdkit/builder.hpp"
+#include "rbdkit/parsers/builder.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -1,4 +1,4 @@
-// rbdkit._core.Engine: the batched CPU engine (rbdkit/engine.hpp).
+// rbdkit._core.Engine: the batched CPU engine (rbdkit/batch/engine.hpp).
 //
 // Every array is C-contiguous, of the engine's dtype (float64 or float32),
 // with the batch B on axis 0 and the documented trailing size (q: nq,
@@ -16,8 +16,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "rbdkit/engine.hpp"
-#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/batch/engine.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -1,11 +1,11 @@
-// rbdkit._core: the operation handles' algorithm table (include/rbdkit/handle.hpp),
+// rbdkit._core: the operation handles' algorithm table (include/rbdkit/handle/handle.hpp),
 // read by the Python rbdkit.Handle so that both languages share one table.
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
-#include "rbdkit/handle.hpp"
+#include "rbdkit/handle/handle.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

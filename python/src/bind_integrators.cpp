@@ -5,7 +5,7 @@
 #include <nanobind/stl/string.h>
 
 #include "arrays.hpp"
-#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

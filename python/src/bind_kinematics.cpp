@@ -4,7 +4,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
-#include "rbdkit/kinematics_api.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -3,7 +3,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
 
-#include "rbdkit/mujoco_api.hpp"
+#include "rbdkit/batch/mujoco_api.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -32,10 +32,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "rbdkit/handle.hpp"
-#include "rbdkit/integrators_api.hpp"
-#include "rbdkit/kinematics_api.hpp"
-#include "rbdkit/mujoco_api.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
+#include "rbdkit/batch/mujoco_api.hpp"
+#include "rbdkit/handle/handle.hpp"
 #include "rbdkit/ops/table.hpp"
 
 namespace nb = nanobind;

@@ -1,4 +1,4 @@
-// rbdkit._core: the trajectory optimiser (include/rbdkit/solver.hpp). The
+// rbdkit._core: the trajectory optimiser (include/rbdkit/solver/solver.hpp). The
 // Python layer (python/rbdkit/_solver.py) checks the arguments and passes the
 // problem and options as dicts; the solve runs with the GIL released and
 // takes it back only for Python callbacks (progress, or derivatives from a
@@ -13,7 +13,7 @@
 #include <memory>
 
 #include "arrays.hpp"
-#include "rbdkit/solver.hpp"
+#include "rbdkit/solver/solver.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

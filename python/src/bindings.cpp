@@ -15,7 +15,7 @@
 #include <stdexcept>
 
 #include "arrays.hpp"
-#include "rbdkit/dynamics.hpp"
+#include "rbdkit/batch/dynamics.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

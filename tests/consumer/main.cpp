@@ -1,7 +1,7 @@
 // Loads a robot through an installed rbdkit and checks M·M⁻¹ = I.
 #include <Eigen/Dense>
 #include <iostream>
-#include <rbdkit/dynamics.hpp>
+#include <rbdkit/batch/dynamics.hpp>
 
 int main(int argc, char** argv) {
   if (argc < 2) return 2;

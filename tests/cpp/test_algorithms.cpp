@@ -7,8 +7,8 @@
 
 #include <Eigen/Dense>
 
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
 
 using namespace rbd;
 

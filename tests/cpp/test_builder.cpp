@@ -10,8 +10,8 @@
 
 #include <Eigen/Dense>
 
-#include "rbdkit/builder.hpp"
-#include "rbdkit/dynamics.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/parsers/builder.hpp"
 
 using namespace rbd;
 

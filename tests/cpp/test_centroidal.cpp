@@ -13,7 +13,7 @@
 
 #include "rbdkit/algorithms/centroidal.hpp"
 #include "rbdkit/algorithms/energy.hpp"
-#include "rbdkit/centroidal_api.hpp"
+#include "rbdkit/batch/centroidal_api.hpp"
 
 using namespace rbd;
 

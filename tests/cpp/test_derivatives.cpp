@@ -11,7 +11,7 @@
 #include <tuple>
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
-#include "rbdkit/dynamics.hpp"
+#include "rbdkit/batch/dynamics.hpp"
 
 using namespace rbd;
 

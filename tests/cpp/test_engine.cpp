@@ -28,10 +28,10 @@
 #include <vector>
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
-#include "rbdkit/algorithms/integrators.hpp"
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/engine.hpp"
-#include "rbdkit/simd.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/engine.hpp"
+#include "rbdkit/batch/simd.hpp"
+#include "rbdkit/plant/integrators.hpp"
 #include "test_models.hpp"
 
 using rbd::Engine;

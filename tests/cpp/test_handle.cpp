@@ -11,10 +11,10 @@
 #include <random>
 #include <set>
 
-#include "rbdkit/costs_api.hpp"
-#include "rbdkit/derivatives_api.hpp"
-#include "rbdkit/handle.hpp"
-#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/batch/costs_api.hpp"
+#include "rbdkit/batch/derivatives_api.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
+#include "rbdkit/handle/handle.hpp"
 #include "test_models.hpp"
 
 using rbd::Handle;

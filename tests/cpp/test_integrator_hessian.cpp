@@ -1,4 +1,4 @@
-// The step Hessian (algorithms/integrator_hessian.hpp) against an exact
+// The step Hessian (plant/integrator_hessian.hpp) against an exact
 // reference: the step run in nested dual numbers Dual<Dual<double>> through
 // integrator_step and the convention's ⊕ / ⊖ gives ∂²ψ/∂z_j∂z_k (and ∂ψ/∂z)
 // to rounding, for every scheme on every bundled robot and joint-type test
@@ -16,9 +16,9 @@
 #include <cstring>
 #include <random>
 
-#include "rbdkit/algorithms/integrator_hessian.hpp"
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/integrators_api.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
+#include "rbdkit/plant/integrator_hessian.hpp"
 
 using namespace rbd;
 

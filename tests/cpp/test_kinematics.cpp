@@ -10,7 +10,7 @@
 
 #include <Eigen/Dense>
 
-#include "rbdkit/kinematics_api.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
 
 using namespace rbd;
 

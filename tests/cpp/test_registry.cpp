@@ -12,19 +12,19 @@
 #include <string>
 #include <vector>
 
-#include "rbdkit/builder.hpp"
-#include "rbdkit/centroidal_api.hpp"
-#include "rbdkit/costs_api.hpp"
-#include "rbdkit/derivatives_api.hpp"
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/handle.hpp"
-#include "rbdkit/integrators_api.hpp"
-#include "rbdkit/kinematics_api.hpp"
-#include "rbdkit/mujoco_api.hpp"
+#include "rbdkit/batch/centroidal_api.hpp"
+#include "rbdkit/batch/costs_api.hpp"
+#include "rbdkit/batch/derivatives_api.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
+#include "rbdkit/batch/mujoco_api.hpp"
+#include "rbdkit/batch/regressor_api.hpp"
+#include "rbdkit/batch/second_order_api.hpp"
+#include "rbdkit/handle/handle.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
-#include "rbdkit/regressor_api.hpp"
-#include "rbdkit/second_order_api.hpp"
+#include "rbdkit/parsers/builder.hpp"
 #include "test_models.hpp"
 
 using rbd::Model;

@@ -11,8 +11,8 @@
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/algorithms/regressor.hpp"
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/regressor_api.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/regressor_api.hpp"
 
 using namespace rbd;
 

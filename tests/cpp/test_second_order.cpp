@@ -11,8 +11,8 @@
 #include <random>
 
 #include "rbdkit/algorithms/fdsva_so.hpp"
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/second_order_api.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/second_order_api.hpp"
 
 using namespace rbd;
 

@@ -6,8 +6,8 @@
 #include <Eigen/Dense>
 #include <random>
 
-#include "rbdkit/kinematics_api.hpp"
-#include "rbdkit/solver.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
+#include "rbdkit/solver/solver.hpp"
 
 namespace {
 

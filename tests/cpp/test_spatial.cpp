@@ -4,9 +4,9 @@
 
 #include <random>
 
-#include "rbdkit/configuration.hpp"
-#include "rbdkit/lie.hpp"
-#include "rbdkit/spatial.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/spatial/lie.hpp"
+#include "rbdkit/spatial/spatial.hpp"
 
 using namespace rbd;
 using V3 = Vec3<double>;

@@ -12,8 +12,8 @@
 
 #include <Eigen/Dense>
 
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/model.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/parsers/model.hpp"
 
 using rbd::Dynamics;
 using rbd::Model;

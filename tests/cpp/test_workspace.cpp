@@ -14,8 +14,8 @@
 
 #include <Eigen/Core>
 
-#include "rbdkit/integrators_api.hpp"
-#include "rbdkit/kinematics_api.hpp"
+#include "rbdkit/batch/integrators_api.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
 #include "test_models.hpp"
 
 using namespace rbd;
@@ -82,7 +82,7 @@ Vec linear_family(const Model& m, Workspace<double>& w, const Vec& q, const Vec&
   EXPECT_TRUE(aba(mv, w, q.data(), qd.data(), tau.data(), fext.data(), -9.81, qdd_aba.data()));
   append(qdd_aba.data(), nv);
   forward_kinematics(mv, w, q.data(), qd.data());
-  for (int i = 0; i < nb; ++i) append(w.Xw[i].R.m, 9), append(&w.Xw[i].p.x, 3);
+  for (int i = 0; i < nb; ++i) append(w.X_world[i].R.m, 9), append(&w.X_world[i].p.x, 3);
   const int leaf = nb - 1;
   frame_jacobian(mv, w, leaf, Transform<double>::identity(), kWorld, x.data());
   append(x.data(), 6 * nv);

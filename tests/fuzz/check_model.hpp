@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
-#include "rbdkit/dynamics.hpp"
-#include "rbdkit/kinematics_api.hpp"
-#include "rbdkit/model.hpp"
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/kinematics_api.hpp"
+#include "rbdkit/parsers/model.hpp"
 
 namespace rbd_fuzz {
 

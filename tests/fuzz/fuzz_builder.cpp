@@ -19,7 +19,7 @@
 #include <string>
 
 #include "check_model.hpp"
-#include "rbdkit/builder.hpp"
+#include "rbdkit/parsers/builder.hpp"
 
 namespace {
 

@@ -27,7 +27,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include "rbdkit/algorithms/idsva_so.hpp"
-#include "rbdkit/dynamics.hpp"
+#include "rbdkit/batch/dynamics.hpp"
 
 namespace {
 

@@ -295,7 +295,7 @@ def test_overflowing_results_raise_instead_of_nan(hyq):
         assert np.all(np.isfinite(r))
 
 
-# ------------------------------------------------------------ huge model values (src/builder.cpp)
+# ------------------------------------------------------------ huge model values (src/parsers/builder.cpp)
 def one_link(inertial, axis="0 0 1"):
     return (f'<?xml version="1.0"?><robot name="t"><link name="a"/><link name="b">{inertial}</link>'
             f'<joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="{axis}"/>'
@@ -324,7 +324,7 @@ def test_huge_axis_normalises_to_a_unit_axis():
     np.testing.assert_allclose(r.crba(q), [[0.1]], rtol=1e-14)
 
 
-# ------------------------------------------------------------ triangle inequality (src/urdf.cpp)
+# ------------------------------------------------------------ triangle inequality (src/parsers/urdf.cpp)
 def test_triangle_inequality_warns_and_strict_refuses():
     # principal moments 0.1, 0.1, 0.5: PSD, but 0.1 + 0.1 < 0.5, which no mass distribution gives
     xml = one_link('<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.5" ixy="0" ixz="0" iyz="0"/>'
@@ -365,7 +365,7 @@ NO_JOINTS = {
 }
 
 
-# ------------------------------------------------------------ names that are not UTF-8 (src/urdf.cpp)
+# ------------------------------------------------------------ names that are not UTF-8 (src/parsers/urdf.cpp)
 @pytest.mark.parametrize("element", ["link", "joint"])
 def test_invalid_utf8_name_is_a_value_error(tmp_path, element):
     # a str cannot carry invalid UTF-8 into from_urdf_string: the bytes go through a file

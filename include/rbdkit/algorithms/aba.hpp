@@ -7,21 +7,21 @@
 // qdd = M⁻¹(tau - c) with a Cholesky solve (aba_dense).
 #pragma once
 
-#include "crba.hpp"
-#include "dense.hpp"
-#include "rnea.hpp"
+#include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/dense.hpp"
+#include "rbdkit/algorithms/rnea.hpp"
 
 namespace rbd {
 
 // pass 1: kinematics, velocity-product accelerations c_i, bias forces pA_i
-//   writes w.X, w.v, w.c, w.IA, w.f (= pA)
+//   writes w.X_parent, w.v, w.c, w.IA, w.f (= pA)
 template <typename S>
 RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* fext) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
+    w.X_parent[i] = body_transform(b, q);
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
-    w.v[i] = b.parent >= 0 ? w.X[i].act_inv(w.v[b.parent]) + vJ : vJ;
+    w.v[i] = b.parent >= 0 ? w.X_parent[i].act_inv(w.v[b.parent]) + vJ : vJ;
     w.c[i] = cross(w.v[i], vJ);
     w.IA[i] = Mat6<S>::from_inertia(b.I);
     w.f[i] = cross(w.v[i], b.I * w.v[i]);
@@ -101,8 +101,8 @@ template <typename S> RBD_HD bool aba_backward_pass(const ModelView<S>& m, Works
         coeff += Dinv[k * b.nv + l] * (w.u[b.v_idx + l] - dot(w.c[i], U[l]));
       pa += coeff * U[k];
     }
-    aba_project_inertia(b, w.X[i], w.IA[i], U, Dinv, w.IA[b.parent]);
-    w.f[b.parent] += w.X[i].act(pa);
+    aba_project_inertia(b, w.X_parent[i], w.IA[i], U, Dinv, w.IA[b.parent]);
+    w.f[b.parent] += w.X_parent[i].act(pa);
   }
   return true;
 }
@@ -115,7 +115,7 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
     Motion<S> ap = Motion<S>::zero();
     if (b.parent >= 0) ap = w.a[b.parent];
     else ap.lin.z = -gravity;
-    w.a[i] = w.X[i].act_inv(ap) + w.c[i];
+    w.a[i] = w.X_parent[i].act_inv(ap) + w.c[i];
     const Force<S>* U = w.U + 6 * i;
     const S* Dinv = w.Dinv + 36 * i;
     S r[6];
@@ -132,10 +132,10 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
 // the first body, leaves to root, whose joint's articulated inertia D is
 // singular at q (the test of aba_backward_pass and minv), or -1: names the
 // joint once an algorithm has reported a mass matrix that is not positive
-// definite. writes w.X, w.IA, w.U, w.Dinv
+// definite. writes w.X_parent, w.IA, w.U, w.Dinv
 template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   for (int i = 0; i < m.nb; ++i) {
-    w.X[i] = body_transform(m.body[i], q);
+    w.X_parent[i] = body_transform(m.body[i], q);
     w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
   }
   for (int i = m.nb - 1; i >= 0; --i) {
@@ -143,7 +143,7 @@ template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Worksp
     Force<S>* U = w.U + 6 * i;
     S* Dinv = w.Dinv + 36 * i;
     if (!aba_joint_inertia(b, w.IA[i], U, Dinv)) return i;
-    if (b.parent >= 0) aba_project_inertia(b, w.X[i], w.IA[i], U, Dinv, w.IA[b.parent]);
+    if (b.parent >= 0) aba_project_inertia(b, w.X_parent[i], w.IA[i], U, Dinv, w.IA[b.parent]);
   }
   return -1;
 }

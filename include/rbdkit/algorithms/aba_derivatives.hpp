@@ -6,9 +6,9 @@
 //   ∂tau/∂f_ext_b = -J_bᵀ,  ∂qdd/∂f_ext_b = M⁻¹ J_bᵀ   (J_b: body b's Jacobian, body frame)
 #pragma once
 
-#include "aba.hpp"
-#include "minv.hpp"
-#include "rnea_derivatives.hpp"
+#include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/minv.hpp"
+#include "rbdkit/algorithms/rnea_derivatives.hpp"
 
 namespace rbd {
 
@@ -64,7 +64,7 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 
 // body Jacobians in body coordinates, transposed and negated:
 // dtau_dfext (nb x nv x 6): [b][r][c] = ∂tau_r/∂f_ext_b[c] = -(J_b)[c][r];
-// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X, w.Xw, w.Sw
+// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world
 template <typename S>
 RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, S* dtau_dfext, S* dqdd_dfext) {
   const int nv = m.nv, nb = m.nb;
@@ -78,7 +78,7 @@ RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
       const BodyDesc<S>& bk = m.body[k];
       for (int c = 0; c < bk.nv; ++c) {
         S col[6];
-        store(w.Xw[bb].act_inv(w.Sw[6 * k + c]), col);
+        store(w.X_world[bb].act_inv(w.S_world[6 * k + c]), col);
         for (int r = 0; r < 6; ++r) Jt[(bk.v_idx + c) * 6 + r] -= col[r];
       }
     }

@@ -24,11 +24,11 @@
 // q ← integrate(q, δ e_k)); mimic bodies add into their target's column.
 #pragma once
 
-#include "../configuration.hpp"
-#include "crba.hpp"
-#include "energy.hpp"
-#include "rnea.hpp"
-#include "rnea_derivatives.hpp"
+#include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/energy.hpp"
+#include "rbdkit/algorithms/rnea.hpp"
+#include "rbdkit/algorithms/rnea_derivatives.hpp"
+#include "rbdkit/model/configuration.hpp"
 
 namespace rbd {
 
@@ -78,13 +78,13 @@ template <typename S> RBD_HD void centroidal_map_pass(const ModelView<S>& m, con
   for (int k = 0; k < 6 * nv; ++k) A0[k] = S(0);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    for (int a = 0; a < b.nv; ++a) add_force_column(w.Ic[i] * w.Sw[6 * i + a], b.v_idx + a, nv, A0);
+    for (int a = 0; a < b.nv; ++a) add_force_column(w.Ic[i] * w.S_world[6 * i + a], b.v_idx + a, nv, A0);
   }
 }
 
 // ------------------------------------------------------------ centre of mass
 
-// c (3) = Σ m_i c_i / M in the world.   writes w.X, w.Xw; false if M <= 0
+// c (3) = Σ m_i c_i / M in the world.   writes w.X_parent, w.X_world; false if M <= 0
 template <typename S> RBD_HD bool center_of_mass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* com) {
   forward_kinematics(m, w, q, static_cast<const S*>(nullptr));
   S M = S(0);
@@ -92,7 +92,7 @@ template <typename S> RBD_HD bool center_of_mass(const ModelView<S>& m, Workspac
   for (int i = 0; i < m.nb; ++i) {
     const Inertia<S>& I = m.body[i].I;
     // world first moment R h + m p
-    mc += w.Xw[i].R * I.h + I.m * w.Xw[i].p;
+    mc += w.X_world[i].R * I.h + I.m * w.X_world[i].p;
     M += I.m;
   }
   if (!all_lanes(lane_gt(M, 0))) return false;
@@ -102,7 +102,7 @@ template <typename S> RBD_HD bool center_of_mass(const ModelView<S>& m, Workspac
 
 // J_com (3 x nv, row-major) = ∂c/∂δ: column (Ic_i s).lin / M, the velocity
 // of the subtree's centre of mass weighted by its share of the mass.
-// com (3) too when not null.   writes w.X, w.Xw, w.Sw, w.Ic (composites); false if M <= 0
+// com (3) too when not null.   writes w.X_parent, w.X_world, w.S_world, w.Ic (composites); false if M <= 0
 template <typename S>
 RBD_HD bool jacobian_com(const ModelView<S>& m, Workspace<S>& w, const S* q, S* J, S* com = nullptr) {
   const int nv = m.nv;
@@ -114,7 +114,7 @@ RBD_HD bool jacobian_com(const ModelView<S>& m, Workspace<S>& w, const S* q, S* 
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     for (int a = 0; a < b.nv; ++a) {
-      const Vec3<S> col = inv_m * (w.Ic[i] * w.Sw[6 * i + a]).lin;
+      const Vec3<S> col = inv_m * (w.Ic[i] * w.S_world[6 * i + a]).lin;
       for (int r = 0; r < 3; ++r) J[r * nv + b.v_idx + a] += col[r];
     }
   }
@@ -150,7 +150,7 @@ RBD_HD bool ccrba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* q
 }
 
 // h (6) = Σ X_0i* I_i v_i moved to c, in one forward pass (no A).
-//   writes w.X, w.Xw, w.v (body frame); false if M <= 0
+//   writes w.X_parent, w.X_world, w.v (body frame); false if M <= 0
 template <typename S>
 RBD_HD bool centroidal_momentum(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, S* h) {
   forward_kinematics(m, w, q, qd);
@@ -158,9 +158,9 @@ RBD_HD bool centroidal_momentum(const ModelView<S>& m, Workspace<S>& w, const S*
   Force<S> h0 = Force<S>::zero();
   for (int i = 0; i < m.nb; ++i) {
     const Inertia<S>& I = m.body[i].I;
-    h0 += w.Xw[i].act(I * w.v[i]);
+    h0 += w.X_world[i].act(I * w.v[i]);
     total.m += I.m;
-    total.h += w.Xw[i].R * I.h + I.m * w.Xw[i].p;
+    total.h += w.X_world[i].R * I.h + I.m * w.X_world[i].p;
   }
   if (!all_lanes(lane_gt(total.m, 0))) return false;
   store(shift_force(h0, (S(1) / total.m) * total.h), h);
@@ -176,7 +176,7 @@ RBD_HD bool centroidal_momentum(const ModelView<S>& m, Workspace<S>& w, const S*
 //                                                          (only subtree(bk) moves)
 //   otherwise                 0
 // then the move to c: ∂A.ang = ∂A0.ang + ∂A0.lin × c + A0.lin[j] × A0.lin[k] / M.
-// writes w.X, w.Xw, w.Sw, w.Ic (composites); false if M <= 0
+// writes w.X_parent, w.X_world, w.S_world, w.Ic (composites); false if M <= 0
 template <typename S> RBD_HD bool dccrba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* A, S* dA) {
   const int nv = m.nv, nn = nv * nv;
   crba_forward_pass(m, w, q);
@@ -189,20 +189,20 @@ template <typename S> RBD_HD bool dccrba(const ModelView<S>& m, Workspace<S>& w,
   for (int j = 0; j < m.nb; ++j) {
     const BodyDesc<S>& bj = m.body[j];
     for (int a = 0; a < bj.nv; ++a) {
-      const Motion<S>& sj = w.Sw[6 * j + a];
+      const Motion<S>& sj = w.S_world[6 * j + a];
       const Force<S> F = w.Ic[j] * sj;
       // steps on j itself and its ancestors move the whole composite
       for (int k = j; k >= 0; k = m.body[k].parent) {
         const BodyDesc<S>& bk = m.body[k];
         for (int b = 0; b < bk.nv; ++b)
-          add_force_column(cross(w.Sw[6 * k + b], F), (bj.v_idx + a) * nv + bk.v_idx + b, nn, dA);
+          add_force_column(cross(w.S_world[6 * k + b], F), (bj.v_idx + a) * nv + bk.v_idx + b, nn, dA);
       }
       // a step on j moves only subtree(j) inside the composites of its strict
       // ancestors e: column of e's DoF b gets s_j ×* (Ic_j s_e) - Ic_j (s_j × s_e)
       for (int e = bj.parent; e >= 0; e = m.body[e].parent) {
         const BodyDesc<S>& be = m.body[e];
         for (int b = 0; b < be.nv; ++b) {
-          const Motion<S>& se = w.Sw[6 * e + b];
+          const Motion<S>& se = w.S_world[6 * e + b];
           const Force<S> d = cross(sj, w.Ic[j] * se) - w.Ic[j] * cross(sj, se);
           add_force_column(d, (be.v_idx + b) * nv + bj.v_idx + a, nn, dA);
         }
@@ -229,7 +229,7 @@ template <typename S> RBD_HD bool dccrba(const ModelView<S>& m, Workspace<S>& w,
 // with A (6 x nv) and h = A qd (6, when not null), in O(n):
 //   Ȧ0 = Bc s + Ic (v × s) per column (Bc = Σ_subtree v_i ×* I_i - I_i v_i×, v the column's body velocity)
 //   Ȧ.ang = Ȧ0.ang + Ȧ0.lin × c + A0.lin × ċ,   ċ = h.lin / M
-// writes w.X, w.Xw, w.Sw, w.v (world), w.Ic, w.h, w.B (composites); false if M <= 0
+// writes w.X_parent, w.X_world, w.S_world, w.v (world), w.Ic, w.h, w.B (composites); false if M <= 0
 template <typename S>
 RBD_HD bool cmm_time_variation(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, S* A, S* Adot,
                                S* h = nullptr) {
@@ -257,7 +257,7 @@ RBD_HD bool cmm_time_variation(const ModelView<S>& m, Workspace<S>& w, const S* 
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     for (int a = 0; a < b.nv; ++a) {
-      const Motion<S>& s = w.Sw[6 * i + a];
+      const Motion<S>& s = w.S_world[6 * i + a];
       add_force_column(w.Ic[i] * s, b.v_idx + a, nv, A);
       add_force_column(w.B[i] * s + w.Ic[i] * cross(w.v[i], s), b.v_idx + a, nv, Adot);
     }
@@ -278,7 +278,7 @@ RBD_HD bool cmm_time_variation(const ModelView<S>& m, Workspace<S>& w, const S* 
 // not null, in one forward pass (Pinocchio's computeCentroidalMomentumTimeVariation):
 //   body frame: v, a (no gravity), f = I a + v ×* I v (rnea_forward_pass), then
 //   h0 = Σ X_0i* I v,  ḣ0 = Σ X_0i* f, moved to c.
-// writes w.X, w.Xw, w.v, w.a, w.f (body frame); false if M <= 0
+// writes w.X_parent, w.X_world, w.v, w.a, w.f (body frame); false if M <= 0
 template <typename S>
 RBD_HD bool centroidal_momentum_time_variation(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                                const S* qdd, S* hdot, S* h = nullptr) {
@@ -287,11 +287,11 @@ RBD_HD bool centroidal_momentum_time_variation(const ModelView<S>& m, Workspace<
   Force<S> h0 = Force<S>::zero(), f0 = Force<S>::zero();
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
-    h0 += w.Xw[i].act(b.I * w.v[i]);
-    f0 += w.Xw[i].act(w.f[i]);
+    w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
+    h0 += w.X_world[i].act(b.I * w.v[i]);
+    f0 += w.X_world[i].act(w.f[i]);
     total.m += b.I.m;
-    total.h += w.Xw[i].R * b.I.h + b.I.m * w.Xw[i].p;
+    total.h += w.X_world[i].R * b.I.h + b.I.m * w.X_world[i].p;
   }
   if (!all_lanes(lane_gt(total.m, 0))) return false;
   const Vec3<S> c = (S(1) / total.m) * total.h;
@@ -326,7 +326,7 @@ RBD_HD void centroidal_derivatives_backward_pass(const ModelView<S>& m, Workspac
     const Inertia<S>& Ic = w.Ic[i];
     for (int a = 0; a < b.nv; ++a) {
       const int k = 6 * i + a, col = b.v_idx + a;
-      const Motion<S>& s = w.Sw[k];
+      const Motion<S>& s = w.S_world[k];
       const Motion<S>& dv = w.dVdq[k];
       add_force_column(cross(s, w.h[i]) + Ic * dv, col, nv, dh_dq);
       add_force_column(cross(s, w.f[i]) + Ic * w.dAdq[k] + w.B[i] * dv + cross(dv, w.h[i]), col, nv, dhdot_dq);

@@ -7,7 +7,7 @@
 // result is Gᵀ M_full G for the reduced-coordinate map G.
 #pragma once
 
-#include "world.hpp"
+#include "rbdkit/algorithms/world.hpp"
 
 namespace rbd {
 
@@ -16,12 +16,12 @@ namespace rbd {
 // dot product per ancestor (no force is carried up the chain).
 
 // forward pass: world placements, subspace columns, world body inertias
-//   writes w.X, w.Xw, w.Sw, w.Ic
+//   writes w.X_parent, w.X_world, w.S_world, w.Ic
 template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     world_placement(m, w, q, i);
-    w.Ic[i] = transform_inertia(w.Xw[i], b.I);
+    w.Ic[i] = transform_inertia(w.X_world[i], b.I);
   }
 }
 
@@ -33,16 +33,16 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
     Force<S> F[6];
-    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * w.Sw[6 * i + k];
+    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * w.S_world[6 * i + k];
     // diagonal block
     for (int k = 0; k < bi.nv; ++k)
-      for (int l = 0; l < bi.nv; ++l) M[(bi.v_idx + l) * nv + bi.v_idx + k] += dot(w.Sw[6 * i + l], F[k]);
+      for (int l = 0; l < bi.nv; ++l) M[(bi.v_idx + l) * nv + bi.v_idx + k] += dot(w.S_world[6 * i + l], F[k]);
     // off-diagonal blocks with every ancestor (and their transposes)
     for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
       const BodyDesc<S>& bj = m.body[j];
       for (int k = 0; k < bi.nv; ++k)
         for (int l = 0; l < bj.nv; ++l) {
-          const S x = dot(w.Sw[6 * j + l], F[k]);
+          const S x = dot(w.S_world[6 * j + l], F[k]);
           M[(bj.v_idx + l) * nv + bi.v_idx + k] += x;
           M[(bi.v_idx + k) * nv + bj.v_idx + l] += x;
         }

@@ -4,7 +4,7 @@
 // forward-dynamics path of mimic models (n = nv).
 #pragma once
 
-#include "../config.hpp"
+#include "rbdkit/spatial/config.hpp"
 
 namespace rbd {
 

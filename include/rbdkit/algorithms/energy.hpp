@@ -17,14 +17,14 @@
 // Mimic bodies add their terms into their target's column (Gᵀ C G).
 #pragma once
 
-#include "kinematics.hpp"
-#include "rnea_derivatives.hpp"
+#include "rbdkit/algorithms/kinematics.hpp"
+#include "rbdkit/algorithms/rnea_derivatives.hpp"
 
 namespace rbd {
 
 // ------------------------------------------------------------------ energies
 
-// T(q, qd) = ½ Σ v_i · I_i v_i, body frame.   writes w.X, w.Xw, w.v
+// T(q, qd) = ½ Σ v_i · I_i v_i, body frame.   writes w.X_parent, w.X_world, w.v
 template <typename S> RBD_HD S kinetic_energy(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd) {
   forward_kinematics(m, w, q, qd);
   S T = S(0);
@@ -32,14 +32,14 @@ template <typename S> RBD_HD S kinetic_energy(const ModelView<S>& m, Workspace<S
   return S(0.5) * T;
 }
 
-// V(q) = -gravity Σ m_i z(c_i), c_i = X_world_i (h_i / m_i).   writes w.X, w.Xw
+// V(q) = -gravity Σ m_i z(c_i), c_i = X_world_i (h_i / m_i).   writes w.X_parent, w.X_world
 template <typename S> RBD_HD S potential_energy(const ModelView<S>& m, Workspace<S>& w, const S* q, S gravity) {
   forward_kinematics(m, w, q, static_cast<const S*>(nullptr));
   S mz = S(0);
   for (int i = 0; i < m.nb; ++i) {
     const Inertia<S>& I = m.body[i].I;
     // world first moment m c = R h + m p; its z component
-    mz += (w.Xw[i].R * I.h).z + I.m * w.Xw[i].p.z;
+    mz += (w.X_world[i].R * I.h).z + I.m * w.X_world[i].p.z;
   }
   return -gravity * mz;
 }
@@ -48,7 +48,7 @@ template <typename S> RBD_HD S potential_energy(const ModelView<S>& m, Workspace
 
 // forward pass, world frame: placements, columns s, velocities v, and per
 // body the inertia Ic, momentum h = Ic v and B = v ×* Ic - Ic v×.
-//   writes w.X, w.Xw, w.Sw, w.v (world), w.Ic, w.h, w.B (per body)
+//   writes w.X_parent, w.X_world, w.S_world, w.v (world), w.Ic, w.h, w.B (per body)
 template <typename S>
 RBD_HD void momentum_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd) {
   for (int i = 0; i < m.nb; ++i) {
@@ -58,7 +58,7 @@ RBD_HD void momentum_forward_pass(const ModelView<S>& m, Workspace<S>& w, const 
     world_motion(m, w, i, qd, static_cast<const S*>(nullptr), S(0), false, false);
     const Motion<S>& v = w.v[i];
     // body inertia, momentum and inertia rate in the world frame
-    w.Ic[i] = transform_inertia(w.Xw[i], b.I);
+    w.Ic[i] = transform_inertia(w.X_world[i], b.I);
     w.h[i] = w.Ic[i] * v;
     w.B[i] = inertia_variation(w.Ic[i], v);
   }
@@ -75,7 +75,7 @@ template <typename S> RBD_HD void coriolis_backward_pass(const ModelView<S>& m, 
   for (int k = 0; k < nv * nv; ++k) C[k] = S(0);
   for (int d = m.nb - 1; d >= 0; --d) {
     const BodyDesc<S>& bd = m.body[d];
-    const Motion<S>* sd = w.Sw + 6 * d;
+    const Motion<S>* sd = w.S_world + 6 * d;
     const Inertia<S>& Ic = w.Ic[d];
     // column forces F = Ic ṡ + Bc s, and the row forces P = Ic s, Q = Bcᵀ s of d's DoFs
     Force<S> F[6], P[6], Q[6];
@@ -89,13 +89,13 @@ template <typename S> RBD_HD void coriolis_backward_pass(const ModelView<S>& m, 
     for (int e = d; e >= 0; e = m.body[e].parent) {
       const BodyDesc<S>& be = m.body[e];
       for (int r = 0; r < be.nv; ++r)
-        for (int c = 0; c < bd.nv; ++c) C[(be.v_idx + r) * nv + bd.v_idx + c] += dot(w.Sw[6 * e + r], F[c]);
+        for (int c = 0; c < bd.nv; ++c) C[(be.v_idx + r) * nv + bd.v_idx + c] += dot(w.S_world[6 * e + r], F[c]);
     }
     // rows of d, columns of its strict ancestors
     for (int e = bd.parent; e >= 0; e = m.body[e].parent) {
       const BodyDesc<S>& be = m.body[e];
       for (int c = 0; c < be.nv; ++c) {
-        const Motion<S>& se = w.Sw[6 * e + c];
+        const Motion<S>& se = w.S_world[6 * e + c];
         const Motion<S> sedot = cross(w.v[e], se);
         for (int r = 0; r < bd.nv; ++r) C[(bd.v_idx + r) * nv + be.v_idx + c] += dot(sedot, P[r]) + dot(se, Q[r]);
       }

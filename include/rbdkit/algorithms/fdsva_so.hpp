@@ -15,8 +15,8 @@
 // with M⁻¹ (the zero entries of ∂M/∂q are skipped).
 #pragma once
 
-#include "aba_derivatives.hpp"
-#include "idsva_so.hpp"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/algorithms/idsva_so.hpp"
 
 namespace rbd {
 

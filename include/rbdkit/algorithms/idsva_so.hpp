@@ -40,7 +40,7 @@
 // tensors, every index contracted with G). No external forces.
 #pragma once
 
-#include "rnea_derivatives.hpp"
+#include "rbdkit/algorithms/rnea_derivatives.hpp"
 
 namespace rbd {
 
@@ -210,7 +210,7 @@ template <typename S> RBD_HD void so_zero(int nv, S* a, S* b, S* c, S* d) {
 // forward pass: rnea_derivatives_forward_pass (world v, a with -g, s, ψ̇, ψ̈, σ,
 // and per-body Ic, h, f, B). backward pass: body by body from the leaves, the
 // path gathered as it is (world frame), the body's terms, composites to the parent.
-// Writes w.X, w.Xw, w.Sw, w.v, w.a, w.dVdq, w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B, w.so_*.
+// Writes w.X_parent, w.X_world, w.S_world, w.v, w.a, w.dVdq, w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B, w.so_*.
 template <typename S>
 RBD_HD void idsva_so_world_frame(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                  S gravity, S* d2tau_dq2, S* d2tau_dqd2, S* d2tau_dqdqd, S* dM_dq) {
@@ -223,7 +223,7 @@ RBD_HD void idsva_so_world_frame(const ModelView<S>& m, Workspace<S>& w, const S
       const BodyDesc<S>& bj = m.body[j];
       for (int a = 0; a < bj.nv; ++a) {
         const int e = 6 * j + a;
-        so_path_push(w, n, bj.v_idx + a, depth, w.Sw[e], w.dVdq[e], w.dAdq[e], w.dAdv[e]);
+        so_path_push(w, n, bj.v_idx + a, depth, w.S_world[e], w.dVdq[e], w.dAdq[e], w.dAdv[e]);
       }
       if (depth == 0) n_c = n;
     }
@@ -245,22 +245,22 @@ RBD_HD void idsva_so_world_frame(const ModelView<S>& m, Workspace<S>& w, const S
 // the root), and per DoF, with S constant in the body and v_λ, a_λ the parent's
 // motion seen in the body:  ψ̇ = v_λ × S,  ψ̈ = a_λ × S + v_λ × ψ̇,  σ = v_i × S + ψ̇;
 // per body I (constant), h = I v, f = I a + v ×* h, B = v ×* I - I v×.
-// Writes w.X, w.v, w.a, and (in body coordinates) w.Sw, w.dVdq, w.dAdq, w.dAdv,
+// Writes w.X_parent, w.v, w.a, and (in body coordinates) w.S_world, w.dVdq, w.dAdq, w.dAdv,
 // w.Ic, w.h, w.f, w.B.
 template <typename S>
 RBD_HD void idsva_so_body_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                        S gravity) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X[i] = body_transform(b, q);
+    w.X_parent[i] = body_transform(b, q);
     Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
     if (b.parent >= 0) {
-      vp = w.X[i].act_inv(w.v[b.parent]);
-      ap = w.X[i].act_inv(w.a[b.parent]);
+      vp = w.X_parent[i].act_inv(w.v[b.parent]);
+      ap = w.X_parent[i].act_inv(w.a[b.parent]);
     } else {
       Motion<S> g = Motion<S>::zero();
       g.lin.z = -gravity;
-      ap = w.X[i].act_inv(g);
+      ap = w.X_parent[i].act_inv(g);
     }
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
     w.v[i] = vp + vJ;
@@ -269,7 +269,7 @@ RBD_HD void idsva_so_body_forward_pass(const ModelView<S>& m, Workspace<S>& w, c
     for (int k = 0; k < b.nv; ++k) {
       const int e = 6 * i + k;
       const Motion<S> s = joint_subspace_col(b, k);
-      w.Sw[e] = s;
+      w.S_world[e] = s;
       w.dVdq[e] = cross(vp, s);
       w.dAdq[e] = cross(ap, s) + cross(vp, w.dVdq[e]);
       w.dAdv[e] = cross(w.v[i], s) + w.dVdq[e];
@@ -295,13 +295,13 @@ RBD_HD void idsva_so_body_frame(const ModelView<S>& m, Workspace<S>& w, const S*
     Transform<S> X_r_c = Transform<S>::identity();
     for (int j = c, child = -1, depth = 0; j >= 0; child = j, j = m.body[j].parent, ++depth) {
       const BodyDesc<S>& bj = m.body[j];
-      if (child >= 0) X_r_c = w.X[child] * X_r_c;  // X_j_c = X_j_child · X_child_c
+      if (child >= 0) X_r_c = w.X_parent[child] * X_r_c;  // X_j_c = X_j_child · X_child_c
       for (int a = 0; a < bj.nv; ++a) {
         const int e = 6 * j + a;
         if (depth == 0)
-          so_path_push(w, n, bj.v_idx + a, depth, w.Sw[e], w.dVdq[e], w.dAdq[e], w.dAdv[e]);
+          so_path_push(w, n, bj.v_idx + a, depth, w.S_world[e], w.dVdq[e], w.dAdq[e], w.dAdv[e]);
         else
-          so_path_push(w, n, bj.v_idx + a, depth, X_r_c.act_inv(w.Sw[e]), X_r_c.act_inv(w.dVdq[e]),
+          so_path_push(w, n, bj.v_idx + a, depth, X_r_c.act_inv(w.S_world[e]), X_r_c.act_inv(w.dVdq[e]),
                        X_r_c.act_inv(w.dAdq[e]), X_r_c.act_inv(w.dAdv[e]));
       }
       if (depth == 0) n_c = n;
@@ -310,7 +310,7 @@ RBD_HD void idsva_so_body_frame(const ModelView<S>& m, Workspace<S>& w, const S*
                         dM_dq);
     const int p = m.body[c].parent;
     if (p >= 0) {
-      const Transform<S>& X = w.X[c];
+      const Transform<S>& X = w.X_parent[c];
       w.Ic[p] += transform_inertia(X, w.Ic[c]);
       w.h[p] += X.act(w.h[c]);
       w.f[p] += X.act(w.f[c]);

@@ -21,7 +21,7 @@
 // with respect to tangent perturbations q ⊕ δ (nv columns).
 #pragma once
 
-#include "../workspace.hpp"
+#include "rbdkit/model/workspace.hpp"
 
 namespace rbd {
 
@@ -40,30 +40,30 @@ template <typename S> RBD_HD void forward_kinematics(const ModelView<S>& m, Work
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // X_λi, X_0i = X_0λ X_λi
-    w.X[i] = body_transform(b, q);
-    w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+    w.X_parent[i] = body_transform(b, q);
+    w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
     // v_i = X_λi⁻¹ v_λ + S qd
     if (!qd) continue;
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
-    w.v[i] = b.parent >= 0 ? w.X[i].act_inv(w.v[b.parent]) + vJ : vJ;
+    w.v[i] = b.parent >= 0 ? w.X_parent[i].act_inv(w.v[b.parent]) + vJ : vJ;
   }
 }
 
 // X_world_frame of a frame at X_body_frame on `body` (-1: the world), after forward_kinematics
 template <typename S>
 RBD_HD Transform<S> frame_placement(const Workspace<S>& w, int body, const Transform<S>& X_body_frame) {
-  return body >= 0 ? w.Xw[body] * X_body_frame : X_body_frame;
+  return body >= 0 ? w.X_world[body] * X_body_frame : X_body_frame;
 }
 
 // world-frame velocity of a body (at the world origin, world axes), after
 // forward_kinematics with qd; zero for the world (-1)
 template <typename S> RBD_HD Motion<S> world_velocity(const Workspace<S>& w, int body) {
-  return body >= 0 ? w.Xw[body].act(w.v[body]) : Motion<S>::zero();
+  return body >= 0 ? w.X_world[body].act(w.v[body]) : Motion<S>::zero();
 }
 
 // the world-frame column of DoF a of body k: X_world_k · S_k[:, a]
 template <typename S> RBD_HD Motion<S> world_subspace_col(const ModelView<S>& m, const Workspace<S>& w, int k, int a) {
-  return w.Xw[k].act(joint_subspace_col(m.body[k], a));
+  return w.X_world[k].act(joint_subspace_col(m.body[k], a));
 }
 
 // a world-frame motion s re-expressed in reference frame rf for the frame at X_world_F
@@ -171,7 +171,7 @@ template <typename S> RBD_HD Mat3<S> rpy_rate_matrix_derivative(const Vec3<S>& r
 
 // pose (6) = [position of the point `offset` (body frame) of `body` in the world; roll, pitch, yaw]
 template <typename S> RBD_HD void end_effector_pose(const Workspace<S>& w, int body, const Vec3<S>& offset, S* pose) {
-  const Transform<S>& X = w.Xw[body];
+  const Transform<S>& X = w.X_world[body];
   const Vec3<S> p = X.act_point(offset), rpy = rpy_from_matrix(X.R);
   pose[0] = p.x; pose[1] = p.y; pose[2] = p.z;
   pose[3] = rpy.x; pose[4] = rpy.y; pose[5] = rpy.z;
@@ -185,8 +185,8 @@ RBD_HD void end_effector_pose_gradient(const ModelView<S>& m, const Workspace<S>
                                        S* G) {
   const int nv = m.nv;
   for (int k = 0; k < 6 * nv; ++k) G[k] = S(0);
-  const Vec3<S> p = w.Xw[body].act_point(offset);
-  const Mat3<S> Einv = rpy_rate_matrix_inverse(rpy_from_matrix(w.Xw[body].R));
+  const Vec3<S> p = w.X_world[body].act_point(offset);
+  const Mat3<S> Einv = rpy_rate_matrix_inverse(rpy_from_matrix(w.X_world[body].R));
   for (int k = body; k >= 0; k = m.body[k].parent) {
     const BodyDesc<S>& b = m.body[k];
     for (int a = 0; a < b.nv; ++a) {
@@ -209,8 +209,8 @@ RBD_HD void end_effector_pose_hessian_analytic(const ModelView<S>& m, const Work
                                                const Vec3<S>& offset, S* H) {
   const int nv = m.nv;
   for (int k = 0; k < 6 * nv * nv; ++k) H[k] = S(0);
-  const Vec3<S> p = w.Xw[body].act_point(offset);
-  const Vec3<S> rpy = rpy_from_matrix(w.Xw[body].R);
+  const Vec3<S> p = w.X_world[body].act_point(offset);
+  const Vec3<S> rpy = rpy_from_matrix(w.X_world[body].R);
   const Mat3<S> Einv = rpy_rate_matrix_inverse(rpy);
   // k: the differentiated column; j: the perturbation, over the support chain
   for (int bk = body; bk >= 0; bk = m.body[bk].parent) {

@@ -20,12 +20,12 @@
 // the dense path (Cholesky inverse of M).
 #pragma once
 
-#include "aba.hpp"
+#include "rbdkit/algorithms/aba.hpp"
 
 namespace rbd {
 
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
-// writes w.X, w.IA, w.U (world frame), w.Dinv, w.Sw (world frame), w.F
+// writes w.X_parent, w.IA, w.U (world frame), w.Dinv, w.Sw (world frame), w.F
 // (nv x 6), Minv (upper part). false if some D is not positive definite.
 template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
   const int nv = m.nv;
@@ -33,7 +33,7 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     world_placement(m, w, q, i, false);
-    w.IA[i] = Mat6<S>::from_inertia(transform_inertia(w.Xw[i], b.I));
+    w.IA[i] = Mat6<S>::from_inertia(transform_inertia(w.X_world[i], b.I));
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
   for (int k = 0; k < 6 * nv; ++k) w.F[k] = S(0);
@@ -41,10 +41,10 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv, c_end = b.v_idx + b.nv_subtree;
     Force<S>* U = w.U + 6 * i;
-    Motion<S>* Sw = w.Sw + 6 * i;
+    Motion<S>* Sw = w.S_world + 6 * i;
     S* Dinv = w.Dinv + 36 * i;
     // U = IA S, D⁻¹, and IA_λ += IA - U D⁻¹ Uᵀ
-    for (int k = 0; k < ni; ++k) Sw[k] = w.Xw[i].act(joint_subspace_col(b, k));
+    for (int k = 0; k < ni; ++k) Sw[k] = w.X_world[i].act(joint_subspace_col(b, k));
     if (!joint_inertia(ni, Sw, w.IA[i], U, Dinv)) return false;
     if (b.parent >= 0) w.IA[b.parent] += articulated_residual(ni, w.IA[i], U, Dinv);
     // own block: D⁻¹
@@ -80,7 +80,7 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv;
     const Force<S>* U = w.U + 6 * i;
-    const Motion<S>* Sw = w.Sw + 6 * i;
+    const Motion<S>* Sw = w.S_world + 6 * i;
     const S* Dinv = w.Dinv + 36 * i;
     S* P = w.P + 6 * nv * i;
     const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;

@@ -8,14 +8,14 @@
 // Cholesky works for mimic models too (their reduced M has no tree sparsity).
 #pragma once
 
-#include "crba.hpp"
-#include "dense.hpp"
-#include "kinematics.hpp"
+#include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/dense.hpp"
+#include "rbdkit/algorithms/kinematics.hpp"
 
 namespace rbd {
 
 // pass 1: w.dense[0, nv²) <- the Cholesky factor L of M(q) (lower triangle);
-// also w.X, w.Xw. false if M is not positive definite.
+// also w.X_parent, w.X_world. false if M is not positive definite.
 template <typename S> RBD_HD bool osc_factor_mass_matrix(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   crba(m, w, q, w.dense);
   forward_kinematics(m, w, q, static_cast<const S*>(nullptr));

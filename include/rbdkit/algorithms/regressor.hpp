@@ -27,7 +27,7 @@
 // O(10·n·d²) in all (plus clearing the dense output).
 #pragma once
 
-#include "aba_derivatives.hpp"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
 
 namespace rbd {
 
@@ -66,7 +66,7 @@ template <typename S> RBD_HD Force<S> inertia_rate(const Inertia<S>& I, const Mo
 // world placements, subspace columns, velocities and accelerations (gravity
 // included); with sens, also the column sensitivities of rnea_derivatives
 //   q (nq), qd (nv), qdd (nv or null: zero)
-//   writes w.X, w.Xw, w.Sw, w.v, w.a (world frame) [, w.dVdq, w.dAdq, w.dAdv]
+//   writes w.X_parent, w.X_world, w.S_world, w.v, w.a (world frame) [, w.dVdq, w.dAdq, w.dAdv]
 template <typename S>
 RBD_HD void regressor_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                    S gravity, bool sens) {
@@ -79,12 +79,12 @@ RBD_HD void regressor_forward_pass(const ModelView<S>& m, Workspace<S>& w, const
 // ----------------------------------------------------------------- regressor
 // backward pass: Y[j, 10b + p] = s_j · f_b(e_p) for the DoFs j supporting b,
 // f_b(e_p) formed in the body frame (sparse unit inertia) and moved to the world.
-//   reads w.Xw, w.Sw, w.v, w.a; writes Y (nv x 10 nb, row-major)
+//   reads w.X_world, w.S_world, w.v, w.a; writes Y (nv x 10 nb, row-major)
 template <typename S> RBD_HD void regressor_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* Y) {
   const int nv = m.nv, np = 10 * m.nb;
   for (int k = 0; k < nv * np; ++k) Y[k] = S(0);
   for (int b = 0; b < m.nb; ++b) {
-    const Transform<S>& Xw = w.Xw[b];
+    const Transform<S>& Xw = w.X_world[b];
     const Motion<S> v = Xw.act_inv(w.v[b]), a = Xw.act_inv(w.a[b]);  // body frame
     for (int p = 0; p < 10; ++p) {
       // net world force of body b carrying the unit parameter e_p
@@ -93,7 +93,7 @@ template <typename S> RBD_HD void regressor_backward_pass(const ModelView<S>& m,
       // its joint forces on b's support
       for (int j = b; j >= 0; j = m.body[j].parent) {
         const BodyDesc<S>& bj = m.body[j];
-        for (int k = 0; k < bj.nv; ++k) Y[(bj.v_idx + k) * np + 10 * b + p] += dot(w.Sw[6 * j + k], f);
+        for (int k = 0; k < bj.nv; ++k) Y[(bj.v_idx + k) * np + 10 * b + p] += dot(w.S_world[6 * j + k], f);
       }
     }
   }
@@ -132,12 +132,12 @@ RBD_HD void regressor_gradient_backward_pass(const ModelView<S>& m, Workspace<S>
     for (int p = 0; p < 10; ++p) {
       const int col = 10 * b + p;
       // body b's world inertia, momentum and net force for π_b = e_p
-      const Inertia<S> oI = transform_inertia(w.Xw[b], unit_inertia<S>(p));
+      const Inertia<S> oI = transform_inertia(w.X_world[b], unit_inertia<S>(p));
       const Force<S> h = oI * vb;
       const Force<S> f = oI * w.a[b] + cross(vb, h);
       for (int i = b; i >= 0; i = m.body[i].parent) {
         const BodyDesc<S>& bi = m.body[i];
-        const Motion<S>* si = w.Sw + 6 * i;
+        const Motion<S>* si = w.S_world + 6 * i;
         // rows of joint i, columns of i and its ancestors k
         for (int a = 0; a < bi.nv; ++a) {
           const int r = bi.v_idx + a;
@@ -149,7 +149,7 @@ RBD_HD void regressor_gradient_backward_pass(const ModelView<S>& m, Workspace<S>
             for (int c = 0; c < bk.nv; ++c) {
               const long o = (bk.v_idx + c) * plane + r * np + col;
               dq[o] += dot(w.dAdq[6 * k + c], A) + dot(w.dVdq[6 * k + c], Bt);
-              dqd[o] += dot(w.dAdv[6 * k + c], A) + dot(w.Sw[6 * k + c], Bt);
+              dqd[o] += dot(w.dAdv[6 * k + c], A) + dot(w.S_world[6 * k + c], Bt);
             }
           }
         }
@@ -163,8 +163,8 @@ RBD_HD void regressor_gradient_backward_pass(const ModelView<S>& m, Workspace<S>
             const BodyDesc<S>& bj = m.body[j];
             for (int a = 0; a < bj.nv; ++a) {
               const long o = (bi.v_idx + c) * plane + (bj.v_idx + a) * np + col;
-              dq[o] += dot(w.Sw[6 * j + a], Psi);
-              dqd[o] += dot(w.Sw[6 * j + a], Phi);
+              dq[o] += dot(w.S_world[6 * j + a], Psi);
+              dqd[o] += dot(w.S_world[6 * j + a], Phi);
             }
           }
         }
@@ -227,16 +227,16 @@ RBD_HD bool forward_dynamics_parameter_gradient(const ModelView<S>& m, Workspace
 // kinetic energy T = Σ_b ½ v_bᵀ I_b v_b = y·π, with v_b = (v, ω) the body
 // velocity in the body frame:
 //   y_b = ½ [v·v, 2 (v × ω), ω_x², 2 ω_x ω_y, ω_y², 2 ω_x ω_z, 2 ω_y ω_z, ω_z²]
-//   writes w.X, w.v (body frame), y (10 nb)
+//   writes w.X_parent, w.v (body frame), y (10 nb)
 template <typename S>
 RBD_HD void kinetic_energy_regressor(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, S* y) {
   const S half = S(0.5);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // body velocity: v_i = X⁻¹ v_λ + S qd
-    w.X[i] = body_transform(b, q);
+    w.X_parent[i] = body_transform(b, q);
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
-    w.v[i] = b.parent >= 0 ? w.X[i].act_inv(w.v[b.parent]) + vJ : vJ;
+    w.v[i] = b.parent >= 0 ? w.X_parent[i].act_inv(w.v[b.parent]) + vJ : vJ;
     const Vec3<S>& v = w.v[i].lin;
     const Vec3<S>& om = w.v[i].ang;
     const Vec3<S> vxw = cross(v, om);
@@ -251,12 +251,12 @@ RBD_HD void kinetic_energy_regressor(const ModelView<S>& m, Workspace<S>& w, con
 // potential energy V = -Σ_b g·(m_b p_b + R_b h_b) = y·π with g = (0, 0, gravity),
 // X_world_b = (R_b, p_b): Pinocchio's convention (zero at the world origin)
 //   y_b = -gravity [p_b.z, R_b(2, 0), R_b(2, 1), R_b(2, 2), 0, 0, 0, 0, 0, 0]
-//   writes w.X, w.Xw, y (10 nb)
+//   writes w.X_parent, w.X_world, y (10 nb)
 template <typename S>
 RBD_HD void potential_energy_regressor(const ModelView<S>& m, Workspace<S>& w, const S* q, S gravity, S* y) {
   for (int i = 0; i < m.nb; ++i) {
     world_placement(m, w, q, i, false);
-    const Transform<S>& X = w.Xw[i];
+    const Transform<S>& X = w.X_world[i];
     S* o = y + 10 * i;
     o[0] = -gravity * X.p.z;
     for (int k = 0; k < 3; ++k) o[1 + k] = -gravity * X.R(2, k);

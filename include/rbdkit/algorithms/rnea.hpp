@@ -7,20 +7,20 @@
 // -9.81); it enters as a fictitious base acceleration a_0 = -g.
 #pragma once
 
-#include "../workspace.hpp"
+#include "rbdkit/model/workspace.hpp"
 
 namespace rbd {
 
 // forward pass: body transforms, velocities, accelerations, net body forces
 //   q (nq), qd (nv), qdd (nv or null: zero), fext (nb x 6 body frame or null)
-//   writes w.X, w.v, w.a (gravity included), w.f
+//   writes w.X_parent, w.v, w.a (gravity included), w.f
 template <typename S>
 RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                               const S* qdd, const S* fext, S gravity) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // kinematics: X_λi, v_i = X⁻¹ v_λ + S qd, a_i = X⁻¹ a_λ + S qdd + v_i × S qd
-    w.X[i] = body_transform(b, q);
+    w.X_parent[i] = body_transform(b, q);
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
     Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
     if (b.parent >= 0) {
@@ -29,8 +29,8 @@ RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q
     } else {
       ap.lin.z = -gravity;
     }
-    w.v[i] = w.X[i].act_inv(vp) + vJ;
-    w.a[i] = w.X[i].act_inv(ap) + cross(w.v[i], vJ);
+    w.v[i] = w.X_parent[i].act_inv(vp) + vJ;
+    w.a[i] = w.X_parent[i].act_inv(ap) + cross(w.v[i], vJ);
     if (qdd) w.a[i] += joint_motion(b, qdd + b.v_idx);
     // net force: f_i = I a_i + v_i ×* I v_i - f_ext
     w.f[i] = b.I * w.a[i] + cross(w.v[i], b.I * w.v[i]);
@@ -46,7 +46,7 @@ template <typename S> RBD_HD void rnea_backward_pass(const ModelView<S>& m, Work
     S t[6];
     joint_project(b, w.f[i], t);
     for (int k = 0; k < b.nv; ++k) tau[b.v_idx + k] += t[k];
-    if (b.parent >= 0) w.f[b.parent] += w.X[i].act(w.f[i]);
+    if (b.parent >= 0) w.f[b.parent] += w.X_parent[i].act(w.f[i]);
   }
 }
 
@@ -59,7 +59,7 @@ RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd
 }
 
 // body accelerations without the fictitious gravity term (writes a_out, nb)
-// from w.a and w.X after a forward pass
+// from w.a and w.X_parent after a forward pass
 template <typename S>
 RBD_HD void remove_gravity(const ModelView<S>& m, const Workspace<S>& w, S gravity, Motion<S>* a_out) {
   // g_i: the base acceleration -g expressed in body i; accumulated rotations only
@@ -67,7 +67,7 @@ RBD_HD void remove_gravity(const ModelView<S>& m, const Workspace<S>& w, S gravi
     const BodyDesc<S>& b = m.body[i];
     Vec3<S> gp = {S(0), S(0), -gravity};
     if (b.parent >= 0) gp = a_out[b.parent].lin;  // temporarily holds g of the parent (see below)
-    a_out[i].lin = mul_t(w.X[i].R, gp);
+    a_out[i].lin = mul_t(w.X_parent[i].R, gp);
   }
   for (int i = 0; i < m.nb; ++i) {
     a_out[i] = {w.a[i].lin - a_out[i].lin, w.a[i].ang};

@@ -20,7 +20,7 @@
 // add their terms into their target's column (the reduced derivative).
 #pragma once
 
-#include "world.hpp"
+#include "rbdkit/algorithms/world.hpp"
 
 namespace rbd {
 
@@ -55,7 +55,7 @@ template <typename S> RBD_HD Mat6<S> inertia_variation(const Inertia<S>& I, cons
 // forward pass: world placements, subspace columns, velocities, accelerations,
 // column sensitivities, and per-body inertia, momentum, force and B.
 //   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null)
-//   writes w.X, w.Xw, w.Sw, w.v, w.a (world, gravity included), w.dVdq,
+//   writes w.X_parent, w.X_world, w.S_world, w.v, w.a (world, gravity included), w.dVdq,
 //   w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B
 template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
@@ -66,11 +66,11 @@ RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w
     world_placement(m, w, q, i);
     world_motion(m, w, i, qd, qdd, gravity, true, true);
     // body inertia, momentum and net force in the world frame
-    const Inertia<S> oI = transform_inertia(w.Xw[i], b.I);
+    const Inertia<S> oI = transform_inertia(w.X_world[i], b.I);
     w.Ic[i] = oI;
     w.h[i] = oI * w.v[i];
     w.f[i] = oI * w.a[i] + cross(w.v[i], w.h[i]);
-    if (fext) w.f[i] -= w.Xw[i].act(load_force(fext + 6 * i));
+    if (fext) w.f[i] -= w.X_world[i].act(load_force(fext + 6 * i));
     w.B[i] = inertia_variation(oI, w.v[i]);
   }
 }
@@ -87,7 +87,7 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
     for (int k = 0; k < nv; ++k) tau[k] = S(0);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
-    const Motion<S>* si = w.Sw + 6 * i;
+    const Motion<S>* si = w.S_world + 6 * i;
     // rows of joint i, columns of i and its ancestors k:
     //   ∂tau_i/∂q_k = dAdq_k · A_i + dVdq_k · Bt_i,  ∂tau_i/∂qd_k = dAdv_k · A_i + s_k · Bt_i
     Force<S> A[6], Bt[6];
@@ -102,7 +102,7 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
         for (int c = 0; c < bk.nv; ++c) {
           const int r = (bi.v_idx + a) * nv + bk.v_idx + c;
           dtau_dq[r] += dot(w.dAdq[6 * k + c], A[a]) + dot(w.dVdq[6 * k + c], Bt[a]);
-          dtau_dqd[r] += dot(w.dAdv[6 * k + c], A[a]) + dot(w.Sw[6 * k + c], Bt[a]);
+          dtau_dqd[r] += dot(w.dAdv[6 * k + c], A[a]) + dot(w.S_world[6 * k + c], Bt[a]);
         }
     }
     // rows of the strict ancestors j, columns of joint i:
@@ -119,8 +119,8 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
         for (int a = 0; a < bj.nv; ++a)
           for (int c = 0; c < bi.nv; ++c) {
             const int r = (bj.v_idx + a) * nv + bi.v_idx + c;
-            dtau_dq[r] += dot(w.Sw[6 * j + a], Psi[c]);
-            dtau_dqd[r] += dot(w.Sw[6 * j + a], Phi[c]);
+            dtau_dq[r] += dot(w.S_world[6 * j + a], Psi[c]);
+            dtau_dqd[r] += dot(w.S_world[6 * j + a], Phi[c]);
           }
       }
       // subtree sums handed to the parent
@@ -141,7 +141,7 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
   rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
 }
 
-// per-body DoF columns (6 per body, as w.Sw) <-> an (nb x 6 x 6) array whose
+// per-body DoF columns (6 per body, as w.S_world) <-> an (nb x 6 x 6) array whose
 // [b][r][a] is row r of column a of body b (zeros beyond the joint's nv): the
 // per-pass helpers' layout
 template <typename S> RBD_HD void store_dof_columns(const ModelView<S>& m, const Motion<S>* cols, S* out) {

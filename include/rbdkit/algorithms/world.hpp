@@ -4,30 +4,30 @@
 // same sweep. Bodies in order (parents first).
 #pragma once
 
-#include "../workspace.hpp"
+#include "rbdkit/model/workspace.hpp"
 
 namespace rbd {
 
 // X_λi and X_0i = X_0λ X_λi of body i; with_subspace: also its motion
-// subspace columns in the world frame, s = X_0i S.  writes w.X, w.Xw [, w.Sw]
+// subspace columns in the world frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
 template <typename S>
 RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true) {
   const BodyDesc<S>& b = m.body[i];
-  w.X[i] = body_transform(b, q);
-  w.Xw[i] = b.parent >= 0 ? w.Xw[b.parent] * w.X[i] : w.X[i];
+  w.X_parent[i] = body_transform(b, q);
+  w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
   if (with_subspace)
-    for (int k = 0; k < b.nv; ++k) w.Sw[6 * i + k] = w.Xw[i].act(joint_subspace_col(b, k));
+    for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = w.X_world[i].act(joint_subspace_col(b, k));
 }
 
 // world-frame velocity v_i = v_λ + s qd and, when with_acc, acceleration
 // a_i = a_λ + s qdd + v_i × s qd (a_0 = -g; qdd null: zero); sens: the column
 // sensitivities of rnea_derivatives, dVdq = v_λ × s, dAdq = a_λ × s + v_λ × dVdq,
-// dAdv = v_i × s + dVdq.  reads w.Sw of body i; writes w.v [, w.a, w.dVdq, w.dAdq, w.dAdv]
+// dAdv = v_i × s + dVdq.  reads w.S_world of body i; writes w.v [, w.a, w.dVdq, w.dAdq, w.dAdv]
 template <typename S>
 RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S* qd, const S* qdd, S gravity,
                          bool with_acc, bool sens) {
   const BodyDesc<S>& b = m.body[i];
-  const Motion<S>* s = w.Sw + 6 * i;
+  const Motion<S>* s = w.S_world + 6 * i;
   Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
   if (b.parent >= 0) {
     vp = w.v[b.parent];

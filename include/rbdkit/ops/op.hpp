@@ -12,8 +12,8 @@
 // see docs/adding-an-operation.md.
 #pragma once
 
-#include "../config.hpp"
-#include "../spatial.hpp"
+#include "rbdkit/spatial/config.hpp"
+#include "rbdkit/spatial/spatial.hpp"
 
 namespace rbd {
 namespace ops {

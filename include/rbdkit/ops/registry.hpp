@@ -6,32 +6,32 @@
 // float32) and, through the same headers, on a CUDA thread.
 //
 // Generated from OpList, in its order (an operation's index is its id):
-//   ops::op_table()        the runtime table (ops/table.hpp, src/ops.cpp)
-//   Engine::run_op          the engine's routes (src/engine/engine_impl.hpp)
-//   Handle::run             checks, the serial loop or the engine (src/handle.cpp)
+//   ops::op_table()        the runtime table (ops/table.hpp, src/ops/ops.cpp)
+//   Engine::run_op          the engine's routes (src/batch/engine/engine_impl.hpp)
+//   Handle::run             checks, the serial loop or the engine (src/handle/handle.cpp)
 //   rbdkit._core op calls   the Python bindings and their checks (python/src/bind_ops.cpp)
 //
 // Shapes below are per sample; every surface adds a leading batch axis B.
 #pragma once
 
-#include "../algorithms/aba.hpp"
-#include "../algorithms/aba_derivatives.hpp"
-#include "../algorithms/centroidal.hpp"
-#include "../algorithms/costs.hpp"
-#include "../algorithms/crba.hpp"
-#include "../algorithms/energy.hpp"
-#include "../algorithms/fdsva_so.hpp"
-#include "../algorithms/integrator_hessian.hpp"
-#include "../algorithms/integrators.hpp"
-#include "../algorithms/kinematics.hpp"
-#include "../algorithms/minv.hpp"
-#include "../algorithms/mujoco_convention.hpp"
-#include "../algorithms/osc.hpp"
-#include "../algorithms/regressor.hpp"
-#include "../algorithms/rnea.hpp"
-#include "../algorithms/rnea_derivatives.hpp"
-#include "../configuration.hpp"
-#include "op.hpp"
+#include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/algorithms/centroidal.hpp"
+#include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/energy.hpp"
+#include "rbdkit/algorithms/fdsva_so.hpp"
+#include "rbdkit/algorithms/kinematics.hpp"
+#include "rbdkit/algorithms/minv.hpp"
+#include "rbdkit/algorithms/osc.hpp"
+#include "rbdkit/algorithms/regressor.hpp"
+#include "rbdkit/algorithms/rnea.hpp"
+#include "rbdkit/algorithms/rnea_derivatives.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/ops/op.hpp"
+#include "rbdkit/plant/costs.hpp"
+#include "rbdkit/plant/integrator_hessian.hpp"
+#include "rbdkit/plant/integrators.hpp"
+#include "rbdkit/plant/mujoco_convention.hpp"
 
 #include <cstdint>
 #include <new>
@@ -256,7 +256,7 @@ struct InverseDynamicsBpass {
       2, {{"tau", shape(kNv)}, {"f_joint", shape(kNb, 6)}}, 0b11, 0, kLinear, kScratchNv, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     for (int i = 0; i < m.nb; ++i) {
-      w.X[i] = body_transform(m.body[i], a.in[0]);
+      w.X_parent[i] = body_transform(m.body[i], a.in[0]);
       w.f[i] = load_force(a.in[1] + 6 * i);
     }
     rnea_backward_pass(m, w, a.out[0] ? a.out[0] : a.scratch);
@@ -312,7 +312,7 @@ template <int Wrt> struct InverseDynamicsGradientFpass {
       0b11, 0, kFull, kNoScratch, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[3]);
-    if (a.out[0]) store_dof_columns(m, Wrt == 0 ? w.dVdq : w.Sw, a.out[0]);
+    if (a.out[0]) store_dof_columns(m, Wrt == 0 ? w.dVdq : w.S_world, a.out[0]);
     if (a.out[1]) store_dof_columns(m, Wrt == 0 ? w.dAdq : w.dAdv, a.out[1]);
     return true;
   }
@@ -332,7 +332,7 @@ template <int Wrt> struct InverseDynamicsGradientBpass {
   // the composites from the state, the DoF columns from the caller
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[5]);
-    load_dof_columns(m, a.in[3], Wrt == 0 ? w.dVdq : w.Sw);
+    load_dof_columns(m, a.in[3], Wrt == 0 ? w.dVdq : w.S_world);
     load_dof_columns(m, a.in[4], Wrt == 0 ? w.dAdq : w.dAdv);
     if (Wrt == 0) rnea_derivatives_backward_pass(m, w, a.out[0], a.scratch, static_cast<S*>(nullptr));
     else rnea_derivatives_backward_pass(m, w, a.scratch, a.out[0], static_cast<S*>(nullptr));
@@ -581,7 +581,7 @@ struct PlantStepHessian {
 #undef RBD_STEP_ARGS
 
 // ---------------------------------------------------------------- the MuJoCo convention's conversions
-// (algorithms/mujoco_convention.hpp); qpos: a configuration in MuJoCo's layout
+// (plant/mujoco_convention.hpp); qpos: a configuration in MuJoCo's layout
 
 struct StateToMujoco {
   static constexpr OpSpec spec = {
@@ -928,7 +928,7 @@ struct ForwardKinematics {
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
     for (int i = 0; i < m.nb; ++i)
-      store_placement(w.Xw[i], a.out[0] ? a.out[0] + 9 * i : nullptr, a.out[1] ? a.out[1] + 3 * i : nullptr);
+      store_placement(w.X_world[i], a.out[0] ? a.out[0] + 9 * i : nullptr, a.out[1] ? a.out[1] + 3 * i : nullptr);
     return true;
   }
 };
@@ -1130,7 +1130,7 @@ struct EePosCost {
   }
 };
 
-// ---------------------------------------------------------------- costs (the plant layer: algorithms/costs.hpp)
+// ---------------------------------------------------------------- costs (the plant layer: plant/costs.hpp)
 // (value, gradient, Hessian) per knot point, NX = nq + nv. Weights are diagonal, given as vectors of
 // non-negative values. output_convention="mujoco": x, q, qd in MuJoCo's qpos/qvel layout and frames, the
 // tangent error and the tangent blocks of the derivatives along MuJoCo's ⊖ / ⊕; the quadratic costs act on

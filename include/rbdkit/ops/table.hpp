@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "../model.hpp"
-#include "../workspace.hpp"
-#include "op.hpp"
+#include "rbdkit/model/workspace.hpp"
+#include "rbdkit/ops/op.hpp"
+#include "rbdkit/parsers/model.hpp"
 
 namespace rbd {
 namespace ops {

@@ -1,0 +1,177 @@
+// rbdkit/batch/simd.hpp — Pack<T, W>: W samples of scalar T side by side in one
+// vector register, a Scalar type for the per-sample algorithms (the CPU
+// batch engine instantiates them on it; engine.hpp). Host only (GCC/Clang
+// vector extensions).
+//
+//   arithmetic     + - * / and compound forms, lane by lane; a plain
+//                  number converts to a pack with every lane equal to it
+//   functions      ssqrt, satan2, sabs, slog: lane by lane, exactly the
+//                  scalar results; ssin, scos (ssincos): vectorised,
+//                  within an ulp or two of libm
+//   branches       lane_lt / lane_gt give a lane mask; any_lane, all_lanes
+//                  and select (config.hpp) turn scalar branches into
+//                  lane-correct ones. value_of is deliberately not defined:
+//                  a branch on one value does not compile for a pack.
+//
+// The vector type is aligned to its element only, so packs live anywhere
+// (workspaces carved at 16 bytes, the stack); loads are unaligned moves.
+#pragma once
+
+#include <math.h>
+
+#include <type_traits>
+
+#include "rbdkit/spatial/config.hpp"
+
+namespace rbd {
+
+template <typename T, int W> struct Pack {
+  typedef T vec __attribute__((vector_size(sizeof(T) * W), aligned(sizeof(T))));
+  typedef decltype(vec{} < vec{}) mask;
+  static constexpr int width = W;
+  vec v;
+
+  Pack() = default;
+  // broadcast of a plain number
+  template <typename U, typename = typename std::enable_if<std::is_arithmetic<U>::value>::type>
+  Pack(U x) : v(vec{} + static_cast<T>(x)) {}
+  static Pack from(vec x) {
+    Pack p;
+    p.v = x;
+    return p;
+  }
+  T operator[](int l) const { return v[l]; }
+  void set(int l, T x) { v[l] = x; }
+
+  Pack& operator+=(const Pack& o) { v += o.v; return *this; }
+  Pack& operator-=(const Pack& o) { v -= o.v; return *this; }
+  Pack& operator*=(const Pack& o) { v *= o.v; return *this; }
+  Pack& operator/=(const Pack& o) { v /= o.v; return *this; }
+};
+
+template <typename T, int W> inline Pack<T, W> operator+(const Pack<T, W>& a, const Pack<T, W>& b) { return Pack<T, W>::from(a.v + b.v); }
+template <typename T, int W> inline Pack<T, W> operator-(const Pack<T, W>& a, const Pack<T, W>& b) { return Pack<T, W>::from(a.v - b.v); }
+template <typename T, int W> inline Pack<T, W> operator*(const Pack<T, W>& a, const Pack<T, W>& b) { return Pack<T, W>::from(a.v * b.v); }
+template <typename T, int W> inline Pack<T, W> operator/(const Pack<T, W>& a, const Pack<T, W>& b) { return Pack<T, W>::from(a.v / b.v); }
+template <typename T, int W> inline Pack<T, W> operator-(const Pack<T, W>& a) { return Pack<T, W>::from(-a.v); }
+
+// ---- lane-wise functions (scalar libm per lane: the scalar path's values)
+#define RBD_PACK_UNARY(name)                                  \
+  template <typename T, int W> inline Pack<T, W> name(const Pack<T, W>& a) { \
+    Pack<T, W> r;                                             \
+    for (int l = 0; l < W; ++l) r.v[l] = name(a.v[l]);        \
+    return r;                                                 \
+  }
+RBD_PACK_UNARY(sabs)
+RBD_PACK_UNARY(slog)
+#undef RBD_PACK_UNARY
+
+// IEEE square root, correctly rounded like the scalar one (vectorises)
+template <typename T, int W> inline Pack<T, W> ssqrt(const Pack<T, W>& a) {
+  Pack<T, W> r;
+  for (int l = 0; l < W; ++l) r.v[l] = __builtin_sqrt(a.v[l]);
+  return r;
+}
+template <int W> inline Pack<float, W> ssqrt(const Pack<float, W>& a) {
+  Pack<float, W> r;
+  for (int l = 0; l < W; ++l) r.v[l] = __builtin_sqrtf(a.v[l]);
+  return r;
+}
+// ---- sin and cos, vectorised: x = k·π/2 + r (Cody–Waite, π/2 in three
+// parts, k·part exact for |k| < 2²⁰), then Taylor series of sin and cos on
+// |r| ≤ π/4 (9 terms: the remainder is below 1e-19) and the quadrant's
+// sign and swap. Within about an ulp of libm; lanes with |x| > 1e5 use
+// libm. float lanes are computed in double and rounded.
+template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x, typename Pack<double, W>::vec& s,
+                                         typename Pack<double, W>::vec& c) {
+  typedef typename Pack<double, W>::vec V;
+  typedef typename Pack<double, W>::mask M;
+  const V k = __builtin_convertvector(__builtin_convertvector(x * 0.6366197723675814 + (x < 0 ? V{} - 0.5 : V{} + 0.5), M), V);
+  const V r = ((x - k * 1.5707963267341256) - k * 6.077100506303966e-11) - k * 2.0222662487959506e-21;
+  const V z = r * r;
+  // sin r = r + r·z·(-1/3! + z/5! - ...), cos r = 1 - z/2 + z²·(1/4! - z/6! + ...),
+  // Horner from the z⁹ terms; the leading terms added last, cos's 1 - z/2
+  // with its rounding error carried (w + ((1 - w) - z/2)), for results
+  // within about half an ulp
+  const double sc[8] = {-1.0 / 121645100408832000.0, 1.0 / 355687428096000.0, -1.0 / 1307674368000.0,
+                        1.0 / 6227020800.0, -1.0 / 39916800.0, 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0};
+  const double cc[8] = {1.0 / 6402373705728000.0, -1.0 / 20922789888000.0, 1.0 / 87178291200.0,
+                        -1.0 / 479001600.0, 1.0 / 3628800.0, -1.0 / 40320.0, 1.0 / 720.0, -1.0 / 24.0};
+  V ps = V{} + sc[0], pc = V{} + cc[0];
+  for (int i = 1; i < 8; ++i) ps = ps * z + sc[i];
+  for (int i = 1; i < 8; ++i) pc = pc * z + cc[i];
+  const V sr = r + r * (z * (ps * z - 1.0 / 6.0));
+  const V hz = 0.5 * z, w = 1.0 - hz;
+  const V cr = w + (((1.0 - w) - hz) + z * (z * -pc));
+  const M q = __builtin_convertvector(k, M) & 3;
+  const M swap = (q & 1) != 0;
+  s = swap ? cr : sr;
+  c = swap ? sr : cr;
+  s = (q & 2) != 0 ? -s : s;
+  c = ((q + 1) & 2) != 0 ? -c : c;
+  const M big = (x > 1e5) | (x < -1e5) | (x != x);
+  bool any = false;
+  for (int l = 0; l < W; ++l) any |= big[l] != 0;
+  if (any)
+    for (int l = 0; l < W; ++l)
+      if (big[l]) s[l] = ::sin(x[l]), c[l] = ::cos(x[l]);
+}
+template <typename T, int W> inline void ssincos(const Pack<T, W>& x, Pack<T, W>& s, Pack<T, W>& c);
+template <int W> inline void ssincos(const Pack<double, W>& x, Pack<double, W>& s, Pack<double, W>& c) {
+  sincos_pack<W>(x.v, s.v, c.v);
+}
+template <int W> inline void ssincos(const Pack<float, W>& x, Pack<float, W>& s, Pack<float, W>& c) {
+  typedef typename Pack<double, W>::vec V;
+  V sd, cd;
+  sincos_pack<W>(__builtin_convertvector(x.v, V), sd, cd);
+  s.v = __builtin_convertvector(sd, typename Pack<float, W>::vec);
+  c.v = __builtin_convertvector(cd, typename Pack<float, W>::vec);
+}
+template <typename T, int W> inline Pack<T, W> ssin(const Pack<T, W>& x) {
+  Pack<T, W> s, c;
+  ssincos(x, s, c);
+  return s;
+}
+template <typename T, int W> inline Pack<T, W> scos(const Pack<T, W>& x) {
+  Pack<T, W> s, c;
+  ssincos(x, s, c);
+  return c;
+}
+
+template <typename T, int W> inline Pack<T, W> satan2(const Pack<T, W>& y, const Pack<T, W>& x) {
+  Pack<T, W> r;
+  for (int l = 0; l < W; ++l) r.v[l] = satan2(y.v[l], x.v[l]);
+  return r;
+}
+
+// ---- lane masks and choices (a class in rbd, so that argument-dependent
+// lookup finds these from templates defined before this header)
+template <typename T, int W> struct PackMask {
+  typename Pack<T, W>::mask m;
+};
+template <typename T, int W, typename B> inline PackMask<T, W> lane_lt(const Pack<T, W>& a, B b) {
+  return {a.v < static_cast<T>(b)};
+}
+template <typename T, int W, typename B> inline PackMask<T, W> lane_gt(const Pack<T, W>& a, B b) {
+  return {a.v > static_cast<T>(b)};
+}
+template <typename T, int W> inline bool any_lane(const PackMask<T, W>& c) {
+  bool r = false;
+  for (int l = 0; l < W; ++l) r |= c.m[l] != 0;
+  return r;
+}
+template <typename T, int W> inline bool all_lanes(const PackMask<T, W>& c) {
+  bool r = true;
+  for (int l = 0; l < W; ++l) r &= c.m[l] != 0;
+  return r;
+}
+template <typename T, int W> inline Pack<T, W> select(const PackMask<T, W>& c, const Pack<T, W>& a, const Pack<T, W>& b) {
+  return Pack<T, W>::from(c.m ? a.v : b.v);
+}
+
+template <typename T, int W> struct Eps<Pack<T, W>> {
+  static constexpr T small = Eps<T>::small;
+  static constexpr T machine = Eps<T>::machine;
+};
+
+}  // namespace rbd

@@ -1,0 +1,175 @@
+// rbdkit/handle/handle.hpp — an operation handle: a robot plus the algorithms it is
+// built with, the dependencies they pull in, and batched calls of the
+// operations those algorithms provide. Host only.
+//
+// The algorithm table (handle_algorithms()) is the one source of truth for
+// algorithm names, the operations each provides and what each requires; the
+// Python rbdkit.Handle reads the same table through the binding.
+//
+//   rbd::Handle h(rbd::Model::from_urdf_file("iiwa.urdf"), {"integrator_gradient", "com_cost"});
+//   h.has("plant_step_gradient");            // true: integrator_gradient provides it
+//   h.has("com");                            // true: com_cost requires com and ccrba
+//   h.integrator_gradient(B, q, qd, u, nullptr, 0.01, -9.81, rbd::kRK4, x_next, AB);
+//   h.crba(B, q, M);                         // std::invalid_argument: add 'crba' to the algorithms
+//
+// Batched calls take B samples stacked on the leading axis, row-major:
+// q (B x nq), qd / qdd / tau / u (B x nv), x (B x (nq + nv)), f_ext
+// (B x nb x 6) or null. Every call is a registered operation
+// (ops/registry.hpp): run(id, call) checks it (ops::check_call: finite values,
+// unit quaternions, bounds; a bad one throws std::invalid_argument naming it
+// and the sample) and computes it; the typed methods below are run() calls on
+// float64 arrays. An operation the handle was not built with throws
+// std::invalid_argument naming the algorithm to add. A Handle keeps one
+// workspace: one Handle per thread.
+//
+// threads > 0 gives the handle a batched CPU engine (engine.hpp) with that
+// many threads: run() sends every operation there for a batch of B > 1 (a
+// float32 handle: always), f_ext and the MuJoCo convention included; results
+// are bit-identical whatever the thread count. threads = 0 (the default): one
+// sample at a time on the calling thread.
+#pragma once
+
+#include <Eigen/Core>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/batch/engine.hpp"
+
+namespace rbd {
+
+// one row of the algorithm table
+struct AlgorithmInfo {
+  std::string name;                     // what goes in a handle's algorithm list
+  std::vector<std::string> operations;  // the operations it provides (rbdkit.RBD method names)
+  std::vector<std::string> dependencies;  // algorithms it needs (resolved transitively)
+};
+
+// every algorithm, in table order
+const std::vector<AlgorithmInfo>& handle_algorithms();
+// the names in `names` and everything they require, in table order; empty
+// `names` means every algorithm. An unknown name throws std::invalid_argument
+// listing the valid ones.
+std::vector<std::string> resolve_algorithms(const std::vector<std::string>& names);
+// the algorithm that provides `operation` ("" when no algorithm does)
+std::string algorithm_of(const std::string& operation);
+
+// B samples of width n stacked row-major (the Eigen form of a batch)
+using BatchMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+class Handle {
+ public:
+  // algorithms: names from handle_algorithms(); empty = every algorithm;
+  // threads: 0 (no engine) or the engine's thread count (negative: error)
+  explicit Handle(Model model, const std::vector<std::string>& algorithms = {}, int threads = 0);
+  // dtype "float64" or "float32"; a float32 handle computes the registered
+  // operations on the engine (one thread when threads = 0)
+  Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype);
+
+  const Model& model() const { return model_; }
+  int threads() const { return threads_; }
+  const std::string& dtype() const { return dtype_; }
+  // the resolved algorithm list (the requested ones and their dependencies)
+  const std::vector<std::string>& algorithms() const { return algorithms_; }
+  // the operations this handle's algorithms provide, in table order (the
+  // Python rbdkit.Handle offers all of them)
+  std::vector<std::string> available_operations() const;
+  // whether C++ can call `operation` on this handle: a method below or a
+  // registered operation, provided by the handle's algorithms
+  bool has(const std::string& operation) const;
+
+  // ---- registered operations (ops/registry.hpp), by id, on call.B samples
+  // whose arrays hold the handle's dtype: the values are checked
+  // (ops::check_call), then the engine (float32, or a float64 batch of B > 1 with
+  // threads > 0) or the serial loop on the calling thread runs them. The Python bindings call this.
+  void run(int op, const ops::OpCall& call);
+  bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
+
+  // ---- dynamics
+  // tau (B x nv); qdd, fext may be null
+  void inverse_dynamics(long B, const double* q, const double* qd, const double* qdd, const double* fext,
+                        double gravity, double* tau);
+  void crba(long B, const double* q, double* M);                    // M (B x nv x nv)
+  void minv(long B, const double* q, double* Minv);                 // dense M⁻¹ (B x nv x nv)
+  void aba(long B, const double* q, const double* qd, const double* tau, const double* fext, double gravity,
+           double* qdd);                                            // qdd (B x nv)
+  void forward_dynamics(long B, const double* q, const double* qd, const double* tau, const double* fext,
+                        double gravity, double* qdd);               // qdd = M⁻¹ (tau - c) (B x nv)
+
+  // ---- first-order derivatives
+  // dtau_dq, dtau_dqd (B x nv x nv each)
+  void inverse_dynamics_gradient(long B, const double* q, const double* qd, const double* qdd, const double* fext,
+                                 double gravity, double* dtau_dq, double* dtau_dqd);
+  // dqdd_dq, dqdd_dqd (B x nv x nv each)
+  void forward_dynamics_gradient(long B, const double* q, const double* qd, const double* tau, const double* fext,
+                                 double gravity, double* dqdd_dq, double* dqdd_dqd);
+
+  // ---- integrators and the plant step (type: IntegratorType, or integrator_from_name)
+  // x⁺ (B x (nq + nv))
+  void integrator(long B, const double* q, const double* qd, const double* u, const double* fext, double dt,
+                  double gravity, int type, double* x_next);
+  // x⁺ (B x (nq + nv)) when not null and [A | B] (B x 2nv x 3nv), tangent space
+  void integrator_gradient(long B, const double* q, const double* qd, const double* u, const double* fext,
+                           double dt, double gravity, int type, double* x_next, double* AB);
+  // the same on x = [q; qd] (B x (nq + nv))
+  void plant_step(long B, const double* x, const double* u, const double* fext, double dt, double gravity, int type,
+                  double* x_next);
+  void plant_step_gradient(long B, const double* x, const double* u, const double* fext, double dt, double gravity,
+                           int type, double* AB);
+  // the step Hessian H (B x 2nv x 3nv x 3nv), plant/integrator_hessian.hpp; x_next, AB may be null
+  void plant_step_hessian(long B, const double* x, const double* u, double dt, double gravity, int type,
+                          double* x_next, double* AB, double* H);
+
+  // ---- costs (value (B), grad, H) and barriers (value (B), grad, Hdiag); layouts in costs_api.hpp
+  void quadratic_state_cost(long B, const double* x, const double* x_des, const double* Q, double* value,
+                            double* grad, double* H);             // Q (B x NX): grad (B x NX), H (B x NX x NX)
+  void quadratic_state_cost_tangent(long B, const double* x, const double* x_des, const double* Q, double* value,
+                                    double* grad, double* H);     // Q (B x 2nv): grad (B x 2nv), H (B x 2nv x 2nv)
+  void quadratic_input_cost(long B, const double* u, const double* u_des, const double* R, double* value,
+                            double* grad, double* H);             // R (B x nv): grad (B x nv), H (B x nv x nv)
+  // the first end effector (first leaf body) unless `body` >= 0; offset (3) or null
+  void ee_pos_cost(long B, const double* q, const double* p_des, const double* W, double* value, double* grad,
+                   double* H, int body = -1, const double* offset = nullptr);  // grad (B x NX), H (B x NX x NX)
+  void com_cost(long B, const double* q, const double* p_des, const double* W, double* value, double* grad,
+                double* H);                                       // grad (B x NX), H (B x NX x NX)
+  void momentum_cost(long B, const double* q, const double* qd, const double* h_des, const double* W,
+                     double* value, double* grad, double* H);     // grad (B x 2nv), H (B x 2nv x 2nv)
+  void joint_position_barrier(long B, const double* q, const double* lower, const double* upper, double mu,
+                              double* value, double* grad, double* Hdiag);  // bounds, grad, Hdiag (B x nq)
+  void joint_velocity_barrier(long B, const double* qd, const double* lower, const double* upper, double mu,
+                              double* value, double* grad, double* Hdiag);  // (B x nv)
+  void joint_torque_barrier(long B, const double* u, const double* lower, const double* upper, double mu,
+                            double* value, double* grad, double* Hdiag);    // (B x nv)
+
+  // ---- Eigen front ends: one sample per row (B x n); matrices per sample in a vector
+  BatchMatrix inverse_dynamics(const BatchMatrix& q, const BatchMatrix& qd, const BatchMatrix& qdd,
+                               double gravity = -9.81);
+  BatchMatrix forward_dynamics(const BatchMatrix& q, const BatchMatrix& qd, const BatchMatrix& tau,
+                               double gravity = -9.81);
+  std::vector<Eigen::MatrixXd> crba(const BatchMatrix& q);
+  BatchMatrix integrator(const BatchMatrix& q, const BatchMatrix& qd, const BatchMatrix& u, double dt,
+                         const std::string& type = "euler", double gravity = -9.81);
+  std::vector<Eigen::MatrixXd> integrator_gradient(const BatchMatrix& q, const BatchMatrix& qd, const BatchMatrix& u,
+                                                   double dt, const std::string& type = "euler",
+                                                   double gravity = -9.81);
+
+ private:
+  void require(const char* operation) const;  // throws unless has(operation)
+  void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
+  void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
+  void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
+
+  Model model_;
+  std::vector<std::string> algorithms_;
+  std::vector<std::string> operations_;
+  std::vector<bool> op_enabled_;  // per registered operation: provided by the algorithms
+  int threads_ = 0;
+  std::string dtype_ = "float64";
+  WorkspaceCache ws_;  // linear until an O(n²) operation runs
+  std::vector<double> op_scratch_;  // the serial loop's scratch
+  std::mutex run_;  // one run() at a time (the workspace is shared)
+  std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64)
+};
+
+}  // namespace rbd

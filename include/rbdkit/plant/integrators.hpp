@@ -1,0 +1,308 @@
+// rbdkit/plant/integrators.hpp — one time step x⁺ = f(x, u) of the
+// forward dynamics, x = (q, v), and its tangent-space Jacobian [A | B].
+//
+//   euler                  q⁺ = q ⊕ dt v,                    v⁺ = v + dt a(q, v)
+//   semi_implicit_euler    v⁺ = v + dt a(q, v),              q⁺ = q ⊕ dt v⁺
+//   constant_acceleration  q⁺ = q ⊕ (dt v + ½ dt² a),        v⁺ = v + dt a
+//   midpoint, trapezoidal (explicit Heun), rk4: full-state stages. Stage s
+//   retracts from the initial configuration with the preceding stage's
+//   velocity, q_s = q ⊕ c_s dt v_(s-1), v_s = v + c_s dt a_(s-1),
+//   a_s = FD(q_s, v_s, u); then q⁺ = q ⊕ dt Σ b_s v_s, v⁺ = v + dt Σ b_s a_s.
+//
+// u and the body-local external forces stay constant over the step. The
+// Jacobian follows the stages by the chain rule: forward-dynamics gradients
+// at each stage and the Lie-group Jacobians of ⊕ (configuration.hpp).
+// Tangent columns: [δq (nv) | δv (nv) | δu (nv)]; rows [δq⁺ (nv) | δv⁺ (nv)].
+//
+// The stage loop is written once over a convention policy (the coordinates
+// the step runs in): PinocchioStep (integrate/difference, body-frame v) or
+// MujocoStep (mujoco_convention.hpp: MuJoCo's qpos/qvel, ⊕ and frames). The
+// entry points take the convention as a trailing code (OutputConvention).
+#pragma once
+
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/plant/mujoco_convention.hpp"
+
+namespace rbd {
+
+enum IntegratorType : int {
+  kEuler = 0,
+  kSemiImplicitEuler = 1,
+  kMidpoint = 2,
+  kRK4 = 3,
+  kTrapezoidal = 4,       // explicit two-stage Heun
+  kConstantAcceleration = 5,
+};
+
+// the explicit stage tables: stages, c_s (offset of stage s), b_s (weights)
+struct Tableau {
+  int stages;
+  double c[4];
+  double b[4];
+};
+RBD_HD Tableau tableau(int type) {
+  switch (type) {
+    case kMidpoint: return {2, {0.0, 0.5, 0.0, 0.0}, {0.0, 1.0, 0.0, 0.0}};
+    case kTrapezoidal: return {2, {0.0, 1.0, 0.0, 0.0}, {0.5, 0.5, 0.0, 0.0}};
+    case kRK4: return {4, {0.0, 0.5, 0.5, 1.0}, {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}};
+    default: return {1, {0.0, 0.0, 0.0, 0.0}, {1.0, 0.0, 0.0, 0.0}};
+  }
+}
+
+// ---- conventions: retraction ⊕ (its inverse ⊖) with its Jacobians, and the acceleration
+// a(q, v, u) = d/dt v with ∂a/∂δq, ∂a/∂v, ∂a/∂u (nv x nv each)
+
+// Pinocchio's: integrate (SE(3)/SO(3) exponential), body-frame velocities
+template <typename S> struct PinocchioStep {
+  RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { integrate(m, q, d, out); }
+  RBD_HD static void difference(const ModelView<S>& m, const S* q0, const S* q1, S* out) {
+    rbd::difference(m, q0, q1, out);
+  }
+  RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
+    dintegrate(m, q, d, arg, J);
+  }
+  RBD_HD static bool acceleration(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
+                                  const S* fext, S gravity, S* a, S*) {
+    return aba(m, w, q, v, u, fext, gravity, a);
+  }
+  RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                              const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu, S*) {
+    if (!aba_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv)) return false;
+    // ∂a/∂u = M⁻¹: aba_derivatives left M⁻¹ (or the Cholesky factor with mimic joints) in w.dense
+    const int nv = m.nv;
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) Fu[r * nv + c] = r == c ? S(-1) : S(0);
+    apply_neg_minv(m, w, Fu, nv);
+    return true;
+  }
+};
+
+// MuJoCo's: mj_integratePos, qvel = [ṗ world; ω body] on free joints
+template <typename S> struct MujocoStep {
+  RBD_HD static void retract(const ModelView<S>& m, const S* q, const S* d, S* out) { mj_integrate(m, q, d, out); }
+  RBD_HD static void difference(const ModelView<S>& m, const S* q0, const S* q1, S* out) {
+    mj_difference(m, q0, q1, out);
+  }
+  RBD_HD static void dretract(const ModelView<S>& m, const S* q, const S* d, int arg, S* J) {
+    mj_dintegrate(m, q, d, arg, J);
+  }
+  RBD_HD static bool acceleration(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
+                                  const S* fext, S gravity, S* a, S* scratch) {
+    return mujoco_acceleration(m, w, q, v, u, fext, gravity, a, scratch);
+  }
+  RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                              const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu,
+                                              S* scratch) {
+    return mujoco_acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
+  }
+};
+
+// scratch values (of type S) for one step, and for a step with its gradient (either convention)
+RBD_HD long integrator_scratch_values(int nq, int nv) {
+  return nq + 5L * nv + mujoco_acceleration_scratch_values(nq, nv);
+}
+RBD_HD long integrator_gradient_scratch_values(int nq, int nv) {
+  return integrator_scratch_values(nq, nv) + 29L * nv * nv;
+}
+
+// x⁺ = (q⁺ (nq), v⁺ (nv)) written to q_next, v_next, in the coordinates of
+// the convention Conv. false if M is not PD
+template <typename Conv, typename S>
+RBD_HD bool integrator_step_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                 const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch) {
+  const int nq = m.nq, nv = m.nv;
+  S* qs = scratch;             // stage configuration (nq)
+  S* vs = qs + nq;             // stage velocity (nv)
+  S* as = vs + nv;             // stage acceleration (nv)
+  S* vsum = as + nv;           // Σ b_s v_s (nv)
+  S* asum = vsum + nv;         // Σ b_s a_s (nv)
+  S* step = asum + nv;         // tangent step (nv)
+  S* cs = step + nv;           // the convention's scratch
+  if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
+    if (!Conv::acceleration(m, w, q, v, u, fext, gravity, as, cs)) return false;
+    for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
+    for (int k = 0; k < nv; ++k)
+      step[k] = type == kEuler ? dt * v[k]
+              : type == kSemiImplicitEuler ? dt * v_next[k]
+              : dt * v[k] + S(0.5) * dt * dt * as[k];
+    Conv::retract(m, q, step, q_next);
+    return true;
+  }
+  // full-state explicit stages
+  const Tableau T = tableau(type);
+  for (int k = 0; k < nv; ++k) vsum[k] = S(0), asum[k] = S(0);
+  for (int s = 0; s < T.stages; ++s) {
+    // stage state from the initial one with the preceding stage's rates
+    if (s == 0) {
+      for (int k = 0; k < nq; ++k) qs[k] = q[k];
+      for (int k = 0; k < nv; ++k) vs[k] = v[k];
+    } else {
+      const S c = S(T.c[s]) * dt;
+      for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
+      for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
+      Conv::retract(m, q, step, qs);
+    }
+    if (!Conv::acceleration(m, w, qs, vs, u, fext, gravity, as, cs)) return false;
+    for (int k = 0; k < nv; ++k) vsum[k] += S(T.b[s]) * vs[k], asum[k] += S(T.b[s]) * as[k];
+  }
+  for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
+  Conv::retract(m, q, step, q_next);
+  return true;
+}
+
+// the step in the given convention (OutputConvention; default Pinocchio's)
+template <typename S>
+RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v, const S* u,
+                            const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch,
+                            int convention = kPinocchioConvention) {
+  if (convention == kMujocoConvention)
+    return integrator_step_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, scratch);
+  return integrator_step_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, scratch);
+}
+
+// C (r x c) = A (r x n) B (n x c), row-major; C may not alias A or B
+template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, int n, int c) {
+  for (int i = 0; i < r; ++i) {
+    S* Ci = C + i * c;
+    for (int j = 0; j < c; ++j) Ci[j] = S(0);
+    for (int k = 0; k < n; ++k) {
+      const S a = A[i * n + k];
+      const S* Bk = B + k * c;
+      for (int j = 0; j < c; ++j) Ci[j] += a * Bk[j];
+    }
+  }
+}
+
+// x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major) in the tangent of the
+// convention Conv. false if M is not PD.
+template <typename Conv, typename S>
+RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                     const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
+                                     S* scratch) {
+  const int nq = m.nq, nv = m.nv, n3 = 3 * nv;
+  const long nn = static_cast<long>(nv) * nv;
+  S* qs = scratch;
+  S* vs = qs + nq;
+  S* as = vs + nv;
+  S* vsum = as + nv;
+  S* asum = vsum + nv;
+  S* step = asum + nv;
+  S* cs = step + nv;  // the convention's scratch
+  S* mat = scratch + integrator_scratch_values(nq, nv);
+  // per stage: ∂q_s, ∂v_s, ∂a_s with respect to [δq | δv | δu] (nv x 3nv each)
+  S* Dq = mat;            // nv x 3nv
+  S* Dv = Dq + 3 * nn;    // nv x 3nv
+  S* Da = Dv + 3 * nn;    // nv x 3nv
+  S* Dvsum = Da + 3 * nn; // nv x 3nv
+  S* Dasum = Dvsum + 3 * nn;
+  S* Dstep = Dasum + 3 * nn;
+  S* Fq = Dstep + 3 * nn;  // ∂a/∂q at the stage (nv x nv)
+  S* Fv = Fq + nn;         // ∂a/∂v
+  S* Jq = Fv + nn;         // dIntegrate/dq
+  S* Jv = Jq + nn;         // dIntegrate/dv
+  S* T1 = Jv + nn;         // nv x 3nv temporaries
+  S* T2 = T1 + 3 * nn;
+  S* Fu = T2 + 3 * nn;     // ∂a/∂u at the stage (nv x nv)
+
+  // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 Fu]
+  auto stage_acceleration = [&](const S* qq, const S* vv) -> bool {
+    if (!Conv::acceleration_derivatives(m, w, qq, vv, u, fext, gravity, as, Fq, Fv, Fu, cs)) return false;
+    matmul(Fq, Dq, Da, nv, nv, n3);
+    matmul(Fv, Dv, T1, nv, nv, n3);
+    for (long k = 0; k < 3 * nn; ++k) Da[k] += T1[k];
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) Da[r * n3 + 2 * nv + c] += Fu[r * nv + c];
+    return true;
+  };
+  // ∂(q ⊕ w) for a step w with derivative Dw: Jq [1 0 0] + Jv Dw, written to out
+  auto retract_derivative = [&](const S* w_step, const S* Dw, S* out) {
+    Conv::dretract(m, q, w_step, 0, Jq);
+    Conv::dretract(m, q, w_step, 1, Jv);
+    matmul(Jv, Dw, out, nv, nv, n3);
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) out[r * n3 + c] += Jq[r * nv + c];
+  };
+  auto identity_block = [&](S* D, int block) {
+    for (long k = 0; k < 3 * nn; ++k) D[k] = S(0);
+    for (int r = 0; r < nv; ++r) D[r * n3 + block * nv + r] = S(1);
+  };
+
+  // stage 1 (every scheme): q, v, a(q, v)
+  identity_block(Dq, 0);
+  identity_block(Dv, 1);
+  if (!stage_acceleration(q, v)) return false;
+
+  if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
+    // v⁺ = v + dt a
+    for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
+    for (long k = 0; k < 3 * nn; ++k) Dstep[k] = dt * Da[k];  // ∂v⁺ - ∂v
+    for (int r = 0; r < nv; ++r) Dstep[r * n3 + nv + r] += S(1);
+    // step w and ∂w
+    for (int k = 0; k < nv; ++k)
+      step[k] = type == kEuler ? dt * v[k]
+              : type == kSemiImplicitEuler ? dt * v_next[k]
+              : dt * v[k] + S(0.5) * dt * dt * as[k];
+    if (type == kEuler) {
+      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dv[k];
+    } else if (type == kSemiImplicitEuler) {
+      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dstep[k];
+    } else {
+      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
+    }
+    Conv::retract(m, q, step, q_next);
+    retract_derivative(step, T2, T1);
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < n3; ++c) {
+        AB[r * n3 + c] = T1[r * n3 + c];
+        AB[(nv + r) * n3 + c] = Dstep[r * n3 + c];
+      }
+    return true;
+  }
+
+  // full-state stages
+  const Tableau T = tableau(type);
+  for (int k = 0; k < nv; ++k) vsum[k] = S(T.b[0]) * v[k], asum[k] = S(T.b[0]) * as[k];
+  for (long k = 0; k < 3 * nn; ++k) Dvsum[k] = S(T.b[0]) * Dv[k], Dasum[k] = S(T.b[0]) * Da[k];
+  for (int k = 0; k < nv; ++k) vs[k] = v[k];
+  for (int s = 1; s < T.stages; ++s) {
+    const S c = S(T.c[s]) * dt;
+    // q_s = q ⊕ c v_(s-1), v_s = v + c a_(s-1)
+    for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
+    for (long k = 0; k < 3 * nn; ++k) T2[k] = c * Dv[k];
+    Conv::retract(m, q, step, qs);
+    retract_derivative(step, T2, Dq);
+    for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
+    for (long k = 0; k < 3 * nn; ++k) Dv[k] = c * Da[k];
+    for (int r = 0; r < nv; ++r) Dv[r * n3 + nv + r] += S(1);
+    if (!stage_acceleration(qs, vs)) return false;
+    const S b = S(T.b[s]);
+    for (int k = 0; k < nv; ++k) vsum[k] += b * vs[k], asum[k] += b * as[k];
+    for (long k = 0; k < 3 * nn; ++k) Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k];
+  }
+  // q⁺ = q ⊕ dt Σ b v_s, v⁺ = v + dt Σ b a_s
+  for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
+  for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dvsum[k];
+  Conv::retract(m, q, step, q_next);
+  retract_derivative(step, T2, T1);
+  for (int r = 0; r < nv; ++r)
+    for (int c = 0; c < n3; ++c) {
+      AB[r * n3 + c] = T1[r * n3 + c];
+      AB[(nv + r) * n3 + c] = dt * Dasum[r * n3 + c] + (c == nv + r ? S(1) : S(0));
+    }
+  return true;
+}
+
+// the step and its gradient in the given convention (OutputConvention; default Pinocchio's)
+template <typename S>
+RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
+                                S* scratch, int convention = kPinocchioConvention) {
+  if (convention == kMujocoConvention)
+    return integrator_gradient_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                   scratch);
+  return integrator_gradient_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                    scratch);
+}
+
+}  // namespace rbd

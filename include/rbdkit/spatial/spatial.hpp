@@ -1,0 +1,303 @@
+// rbdkit/spatial/spatial.hpp — 3D and 6D spatial algebra, fixed size, host/device.
+//
+// Conventions (docs/conventions.md):
+//   * 6D vectors are [linear; angular]. Motion (v, w), Force (f, n).
+//   * Transform X_a_b = (R, p) places frame b in frame a: x_a = R x_b + p.
+//     X.act(m_b) expresses a motion of frame b in frame a; X.act_inv does
+//     the reverse; the same for forces (X.act(f_b), X.act_inv(f_a)).
+//   * Inertia (m, h = m·c, I_o): mass, first moment and rotational inertia
+//     about the frame origin, all expressed in the body frame.
+#pragma once
+
+#include "rbdkit/spatial/config.hpp"
+
+namespace rbd {
+
+// ---------------------------------------------------------------- Vec3, Mat3
+template <typename S> struct Vec3 {
+  S x, y, z;
+  RBD_HD S& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+  RBD_HD const S& operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  RBD_HD static Vec3 zero() { return {S(0), S(0), S(0)}; }
+};
+
+template <typename S> RBD_HD Vec3<S> operator+(const Vec3<S>& a, const Vec3<S>& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+template <typename S> RBD_HD Vec3<S> operator-(const Vec3<S>& a, const Vec3<S>& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+template <typename S> RBD_HD Vec3<S> operator-(const Vec3<S>& a) { return {-a.x, -a.y, -a.z}; }
+template <typename S> RBD_HD Vec3<S> operator*(const S& s, const Vec3<S>& a) { return {s * a.x, s * a.y, s * a.z}; }
+template <typename S> RBD_HD Vec3<S>& operator+=(Vec3<S>& a, const Vec3<S>& b) { a.x += b.x; a.y += b.y; a.z += b.z; return a; }
+template <typename S> RBD_HD Vec3<S>& operator-=(Vec3<S>& a, const Vec3<S>& b) { a.x -= b.x; a.y -= b.y; a.z -= b.z; return a; }
+template <typename S> RBD_HD S dot(const Vec3<S>& a, const Vec3<S>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+template <typename S> RBD_HD Vec3<S> cross(const Vec3<S>& a, const Vec3<S>& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+// row-major 3x3
+template <typename S> struct Mat3 {
+  S m[9];
+  RBD_HD S& operator()(int r, int c) { return m[3 * r + c]; }
+  RBD_HD const S& operator()(int r, int c) const { return m[3 * r + c]; }
+  RBD_HD static Mat3 identity() { return {{S(1), S(0), S(0), S(0), S(1), S(0), S(0), S(0), S(1)}}; }
+  RBD_HD static Mat3 zero() { return {{S(0), S(0), S(0), S(0), S(0), S(0), S(0), S(0), S(0)}}; }
+};
+
+template <typename S> RBD_HD Vec3<S> operator*(const Mat3<S>& A, const Vec3<S>& v) {
+  return {A.m[0] * v.x + A.m[1] * v.y + A.m[2] * v.z, A.m[3] * v.x + A.m[4] * v.y + A.m[5] * v.z,
+          A.m[6] * v.x + A.m[7] * v.y + A.m[8] * v.z};
+}
+// A^T v
+template <typename S> RBD_HD Vec3<S> mul_t(const Mat3<S>& A, const Vec3<S>& v) {
+  return {A.m[0] * v.x + A.m[3] * v.y + A.m[6] * v.z, A.m[1] * v.x + A.m[4] * v.y + A.m[7] * v.z,
+          A.m[2] * v.x + A.m[5] * v.y + A.m[8] * v.z};
+}
+template <typename S> RBD_HD Mat3<S> operator*(const Mat3<S>& A, const Mat3<S>& B) {
+  Mat3<S> C;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) C(r, c) = A(r, 0) * B(0, c) + A(r, 1) * B(1, c) + A(r, 2) * B(2, c);
+  return C;
+}
+template <typename S> RBD_HD Mat3<S> operator+(const Mat3<S>& A, const Mat3<S>& B) {
+  Mat3<S> C;
+  for (int i = 0; i < 9; ++i) C.m[i] = A.m[i] + B.m[i];
+  return C;
+}
+template <typename S> RBD_HD Mat3<S> operator-(const Mat3<S>& A, const Mat3<S>& B) {
+  Mat3<S> C;
+  for (int i = 0; i < 9; ++i) C.m[i] = A.m[i] - B.m[i];
+  return C;
+}
+template <typename S> RBD_HD Mat3<S> operator*(const S& s, const Mat3<S>& A) {
+  Mat3<S> C;
+  for (int i = 0; i < 9; ++i) C.m[i] = s * A.m[i];
+  return C;
+}
+template <typename S> RBD_HD Mat3<S> transpose(const Mat3<S>& A) {
+  return {{A.m[0], A.m[3], A.m[6], A.m[1], A.m[4], A.m[7], A.m[2], A.m[5], A.m[8]}};
+}
+// [a]x, the cross-product matrix: skew(a) b = a x b
+template <typename S> RBD_HD Mat3<S> skew(const Vec3<S>& a) {
+  return {{S(0), -a.z, a.y, a.z, S(0), -a.x, -a.y, a.x, S(0)}};
+}
+// a b^T
+template <typename S> RBD_HD Mat3<S> outer(const Vec3<S>& a, const Vec3<S>& b) {
+  return {{a.x * b.x, a.x * b.y, a.x * b.z, a.y * b.x, a.y * b.y, a.y * b.z, a.z * b.x, a.z * b.y, a.z * b.z}};
+}
+
+// -------------------------------------------------------------- Motion, Force
+template <typename S> struct Motion {
+  Vec3<S> lin, ang;
+  RBD_HD static Motion zero() { return {Vec3<S>::zero(), Vec3<S>::zero()}; }
+};
+template <typename S> struct Force {
+  Vec3<S> lin, ang;
+  RBD_HD static Force zero() { return {Vec3<S>::zero(), Vec3<S>::zero()}; }
+};
+
+template <typename S> RBD_HD Motion<S> operator+(const Motion<S>& a, const Motion<S>& b) { return {a.lin + b.lin, a.ang + b.ang}; }
+template <typename S> RBD_HD Motion<S> operator-(const Motion<S>& a, const Motion<S>& b) { return {a.lin - b.lin, a.ang - b.ang}; }
+template <typename S> RBD_HD Motion<S> operator*(const S& s, const Motion<S>& a) { return {s * a.lin, s * a.ang}; }
+template <typename S> RBD_HD Motion<S>& operator+=(Motion<S>& a, const Motion<S>& b) { a.lin += b.lin; a.ang += b.ang; return a; }
+template <typename S> RBD_HD Force<S> operator+(const Force<S>& a, const Force<S>& b) { return {a.lin + b.lin, a.ang + b.ang}; }
+template <typename S> RBD_HD Force<S> operator-(const Force<S>& a, const Force<S>& b) { return {a.lin - b.lin, a.ang - b.ang}; }
+template <typename S> RBD_HD Force<S> operator*(const S& s, const Force<S>& a) { return {s * a.lin, s * a.ang}; }
+template <typename S> RBD_HD Force<S>& operator+=(Force<S>& a, const Force<S>& b) { a.lin += b.lin; a.ang += b.ang; return a; }
+template <typename S> RBD_HD Force<S>& operator-=(Force<S>& a, const Force<S>& b) { a.lin -= b.lin; a.ang -= b.ang; return a; }
+
+// power pairing m·f
+template <typename S> RBD_HD S dot(const Motion<S>& m, const Force<S>& f) { return dot(m.lin, f.lin) + dot(m.ang, f.ang); }
+
+// motion cross product a x m  (crm)
+template <typename S> RBD_HD Motion<S> cross(const Motion<S>& a, const Motion<S>& m) {
+  return {cross(a.ang, m.lin) + cross(a.lin, m.ang), cross(a.ang, m.ang)};
+}
+// force cross product a x* f  (crf)
+template <typename S> RBD_HD Force<S> cross(const Motion<S>& a, const Force<S>& f) {
+  return {cross(a.ang, f.lin), cross(a.ang, f.ang) + cross(a.lin, f.lin)};
+}
+
+// ------------------------------------------------------------------ Transform
+template <typename S> struct Transform {
+  Mat3<S> R;
+  Vec3<S> p;
+  RBD_HD static Transform identity() { return {Mat3<S>::identity(), Vec3<S>::zero()}; }
+
+  // X_a_b * X_b_c = X_a_c
+  RBD_HD Transform operator*(const Transform& o) const { return {R * o.R, R * o.p + p}; }
+  RBD_HD Transform inverse() const { return {transpose(R), -mul_t(R, p)}; }
+  RBD_HD Vec3<S> act_point(const Vec3<S>& x) const { return R * x + p; }
+
+  // motion in b -> motion in a
+  RBD_HD Motion<S> act(const Motion<S>& m) const {
+    Vec3<S> w = R * m.ang;
+    return {R * m.lin + cross(p, w), w};
+  }
+  // motion in a -> motion in b
+  RBD_HD Motion<S> act_inv(const Motion<S>& m) const {
+    return {mul_t(R, m.lin - cross(p, m.ang)), mul_t(R, m.ang)};
+  }
+  // force in b -> force in a
+  RBD_HD Force<S> act(const Force<S>& f) const {
+    Vec3<S> fl = R * f.lin;
+    return {fl, R * f.ang + cross(p, fl)};
+  }
+  // force in a -> force in b
+  RBD_HD Force<S> act_inv(const Force<S>& f) const {
+    return {mul_t(R, f.lin), mul_t(R, f.ang - cross(p, f.lin))};
+  }
+};
+
+// rotation of angle t about unit axis a (Rodrigues)
+template <typename S> RBD_HD Mat3<S> axis_angle(const Vec3<S>& a, const S& t) {
+  S s = ssin(t), c = scos(t), v = S(1) - c;
+  return {{c + v * a.x * a.x, v * a.x * a.y - s * a.z, v * a.x * a.z + s * a.y,
+           v * a.x * a.y + s * a.z, c + v * a.y * a.y, v * a.y * a.z - s * a.x,
+           v * a.x * a.z - s * a.y, v * a.y * a.z + s * a.x, c + v * a.z * a.z}};
+}
+
+// rotation matrix of a unit quaternion stored (x, y, z, w)
+template <typename S> RBD_HD Mat3<S> quat_to_matrix(const S* q) {
+  const S x = q[0], y = q[1], z = q[2], w = q[3];
+  const S tx = S(2) * x, ty = S(2) * y, tz = S(2) * z;
+  const S twx = tx * w, twy = ty * w, twz = tz * w;
+  const S txx = tx * x, txy = ty * x, txz = tz * x;
+  const S tyy = ty * y, tyz = tz * y, tzz = tz * z;
+  return {{S(1) - (tyy + tzz), txy - twz, txz + twy,
+           txy + twz, S(1) - (txx + tzz), tyz - twx,
+           txz - twy, tyz + twx, S(1) - (txx + tyy)}};
+}
+
+// ------------------------------------------------------------------- Inertia
+template <typename S> struct Inertia {
+  S m;         // mass
+  Vec3<S> h;   // first moment m·c
+  Mat3<S> I;   // rotational inertia about the frame origin (symmetric)
+
+  RBD_HD static Inertia zero() { return {S(0), Vec3<S>::zero(), Mat3<S>::zero()}; }
+
+  // momentum of a body moving with twist v:  I·v
+  RBD_HD Force<S> operator*(const Motion<S>& v) const {
+    return {m * v.lin - cross(h, v.ang), I * v.ang + cross(h, v.lin)};
+  }
+  RBD_HD Inertia operator+(const Inertia& o) const { return {m + o.m, h + o.h, I + o.I}; }
+  RBD_HD Inertia& operator+=(const Inertia& o) { m += o.m; h += o.h; I = I + o.I; return *this; }
+};
+
+// inertia of frame b re-expressed in frame a (X = X_a_b):  X* I X^-1
+//   m' = m, h' = R h + m p,
+//   I' = R I Rᵀ - ([h][p] + [p][h] + m [p]²)        (h = R h_b, about the new origin)
+//      = R I Rᵀ - (p hᵀ + h pᵀ + m p pᵀ) + (2 h·p + m p·p) 1
+// only the 6 independent entries of the symmetric results are computed
+template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
+  const Mat3<S>& R = X.R;
+  const Vec3<S>& p = X.p;
+  const Vec3<S> h = R * Ib.h;
+  const Mat3<S> RI = R * Ib.I;
+  const S m = Ib.m;
+  const S diag = S(2) * dot(h, p) + m * dot(p, p);
+  Mat3<S> I;
+  for (int r = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c) {
+      const S rot = RI(r, 0) * R(c, 0) + RI(r, 1) * R(c, 1) + RI(r, 2) * R(c, 2);
+      const S v = rot - (p[r] * h[c] + h[r] * p[c] + m * p[r] * p[c]) + (r == c ? diag : S(0));
+      I(r, c) = v;
+      I(c, r) = v;
+    }
+  return {m, h + m * p, I};
+}
+
+// ------------------------------------------------------------------- Mat6
+// dense 6x6 in [linear; angular] blocks, row-major; the articulated inertias
+// of ABA and the Minv recursion. It maps motions to forces.
+template <typename S> struct Mat6 {
+  S m[36];
+  RBD_HD S& operator()(int r, int c) { return m[6 * r + c]; }
+  RBD_HD const S& operator()(int r, int c) const { return m[6 * r + c]; }
+  RBD_HD static Mat6 zero() {
+    Mat6 A;
+    for (int i = 0; i < 36; ++i) A.m[i] = S(0);
+    return A;
+  }
+  RBD_HD static Mat6 from_inertia(const Inertia<S>& Y) {
+    Mat6 A;
+    const Mat3<S> H = skew(Y.h);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        A(r, c) = r == c ? Y.m : S(0);
+        A(r, c + 3) = -H(r, c);
+        A(r + 3, c) = H(r, c);
+        A(r + 3, c + 3) = Y.I(r, c);
+      }
+    return A;
+  }
+  RBD_HD Force<S> operator*(const Motion<S>& v) const {
+    S in[6] = {v.lin.x, v.lin.y, v.lin.z, v.ang.x, v.ang.y, v.ang.z};
+    S out[6];
+    for (int r = 0; r < 6; ++r) {
+      S acc = S(0);
+      for (int c = 0; c < 6; ++c) acc += m[6 * r + c] * in[c];
+      out[r] = acc;
+    }
+    return {{out[0], out[1], out[2]}, {out[3], out[4], out[5]}};
+  }
+  RBD_HD Mat6& operator+=(const Mat6& o) {
+    for (int i = 0; i < 36; ++i) m[i] += o.m[i];
+    return *this;
+  }
+};
+
+// 6x6 motion-transform matrix of X_a_b (maps motions of b into a)
+template <typename S> RBD_HD Mat6<S> motion_matrix(const Transform<S>& X) {
+  Mat6<S> A = Mat6<S>::zero();
+  const Mat3<S> PR = skew(X.p) * X.R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      A(r, c) = X.R(r, c);
+      A(r, c + 3) = PR(r, c);
+      A(r + 3, c + 3) = X.R(r, c);
+    }
+  return A;
+}
+
+// articulated inertia of frame b expressed in frame a: X* Ib X⁻¹ for
+// X = X_a_b. With Ib = [[A, B], [Bᵀ, C]] (linear/angular blocks), rotate each
+// block (A' = R A Rᵀ, ...), then shift by p with P = [p]x:
+//   A_a = A',  B_a = B' - A' P,  C_a = C' - P A' P + P B' + (P B')ᵀ
+template <typename S> RBD_HD Mat6<S> transform_mat6(const Transform<S>& X_a_b, const Mat6<S>& Ib) {
+  Mat3<S> A, B, C;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      A(r, c) = Ib(r, c);
+      B(r, c) = Ib(r, c + 3);
+      C(r, c) = Ib(r + 3, c + 3);
+    }
+  const Mat3<S>& R = X_a_b.R;
+  const Mat3<S> Rt = transpose(R);
+  A = R * A * Rt;
+  B = R * B * Rt;
+  C = R * C * Rt;
+  const Mat3<S> P = skew(X_a_b.p);
+  const Mat3<S> AP = A * P, PB = P * B;
+  const Mat3<S> Ba = B - AP;
+  const Mat3<S> Ca = C - P * AP + PB + transpose(PB);  // -B'ᵀP = (P B')ᵀ
+  Mat6<S> out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      out(r, c) = A(r, c);
+      out(r, c + 3) = Ba(r, c);
+      out(r + 3, c) = Ba(c, r);
+      out(r + 3, c + 3) = Ca(r, c);
+    }
+  return out;
+}
+
+// Motion/Force <-> 6-array helpers
+template <typename S> RBD_HD void store(const Motion<S>& v, S* out) {
+  out[0] = v.lin.x; out[1] = v.lin.y; out[2] = v.lin.z; out[3] = v.ang.x; out[4] = v.ang.y; out[5] = v.ang.z;
+}
+template <typename S> RBD_HD void store(const Force<S>& f, S* out) {
+  out[0] = f.lin.x; out[1] = f.lin.y; out[2] = f.lin.z; out[3] = f.ang.x; out[4] = f.ang.y; out[5] = f.ang.z;
+}
+template <typename S> RBD_HD Motion<S> load_motion(const S* a) { return {{a[0], a[1], a[2]}, {a[3], a[4], a[5]}}; }
+template <typename S> RBD_HD Force<S> load_force(const S* a) { return {{a[0], a[1], a[2]}, {a[3], a[4], a[5]}}; }
+
+}  // namespace rbd
