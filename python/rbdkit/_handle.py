@@ -18,19 +18,16 @@ exception: `inverse_dynamics` returns the joint forces tau only (per-body
 velocities, accelerations and forces: `inverse_dynamics_fpass`, or
 rbdkit.RBD).
 
-Precision and threads. dtype="float32" returns float32 arrays. The
-registered operations (`Handle.fast_operations()`, the C++ registry
-include/rbdkit/ops/registry.hpp: inverse dynamics, generalized gravity,
-nonlinear effects, crba, minv, aba, forward dynamics, both first-order
-gradients, the Lie-group operations, the integrator and plant step with
-their gradients, energies, the Coriolis matrix, centroidal quantities and
-the regressors, f_ext_gradient, the second-order derivatives; f_ext
-included; in the Pinocchio output convention, or on a model without
-quaternion joints; and the conversions between the conventions, in either)
-are compiled callables of the C++
-rbd::Handle: they check their arguments and compute in the handle's dtype
-on the batch engine with `threads` threads. Every other operation computes
-in float64 through rbdkit.RBD and its results are rounded to the dtype.
+Precision, threads and the output convention. Every operation is a
+compiled callable of the C++ rbd::Handle (include/rbdkit/handle/handle.hpp,
+generated from the registry include/rbdkit/ops/registry.hpp): it checks its
+arguments and computes in the handle's dtype (dtype="float32": float32
+arithmetic and arrays) on the batch engine with `threads` threads, f_ext
+included. The handle's output_convention is the default of every operation
+that takes one (the integrators, the plant step, the costs); on a model with
+free-flyer or spherical joints a MuJoCo handle refuses the operations that
+take none, but for the conversions between the conventions. Those
+decisions are the C++ handle's.
 """
 
 import inspect
@@ -51,11 +48,6 @@ DTYPES = ("float64", "float32")
 BACKENDS = ("cpu",)
 CONVENTIONS = ("pinocchio", "mujoco")
 
-# algorithms whose operations read the same in either output convention
-CONVENTION_NEUTRAL = ("mujoco_convention",)
-
-# operations whose handle result differs from the RBD method's
-RESULTS = {"inverse_dynamics": lambda r: r[0]}
 
 
 def _check_threads(threads):
@@ -115,15 +107,6 @@ def _check_algorithms(algorithms):
     return tuple(_core.resolve_algorithms(sorted(algorithms)))
 
 
-def _to_dtype(r, dtype):
-    """results (arrays, numpy scalars, tuples of them) in dtype"""
-    if isinstance(r, tuple):
-        return tuple(_to_dtype(x, dtype) for x in r)
-    if isinstance(r, (np.ndarray, np.floating)) and np.issubdtype(r.dtype, np.floating) and r.dtype != dtype:
-        return r.astype(dtype) if isinstance(r, np.ndarray) else dtype.type(r)
-    return r
-
-
 class Handle:
     """Operations of a model on batched arrays (module doc). Attributes:
     model, rbd (the float64 rbdkit.RBD reference path), algorithms (resolved),
@@ -144,13 +127,12 @@ class Handle:
         self.rbd = RBD(model)
         self.nq, self.nv, self.nb = model.nq, model.nv, model.nb
         self._ops = frozenset(op for a in self.algorithms for op in ALGORITHMS[a][0])
-        # a model without quaternion joints reads the same in both conventions
-        self._convention_noop = not any(j["type"] in ("free", "spherical") for j in model.joints)
-        # the C++ handle (rbd::Handle): the registered operations in this
-        # dtype on the engine with these threads, as compiled callables
-        # (instance attributes, shadowing the generic methods of the class)
-        self._core = _core.OpHandle(model._core, list(self.algorithms), self.threads, self.dtype.name)
-        for op in self.fast_operations():
+        # the C++ handle (rbd::Handle): the operations in this dtype, on the
+        # engine with these threads, in this output convention, as compiled
+        # callables (instance attributes, shadowing the generic methods of the class)
+        self._core = _core.OpHandle(model._core, list(self.algorithms), self.threads, self.dtype.name,
+                                    self.output_convention)
+        for op in self._core.operations():
             self.__dict__[op] = self._core.op(op, True)
 
     # ---- what the handle has
@@ -175,31 +157,16 @@ class Handle:
         return name in self._ops
 
     def fast_operations(self):
-        """the registered operations (include/rbdkit/ops/registry.hpp) this
-        handle computes in C++ in its dtype on the engine with its threads,
-        f_ext included; the others compute in float64 (rounded to the dtype)"""
-        routable = self.output_convention == "pinocchio" or self._convention_noop
-        return [op for op in self._core.operations()
-                if routable or OPERATION_ALGORITHM[op] in CONVENTION_NEUTRAL]
+        """the operations this handle computes in C++, in its dtype, on the
+        engine with its threads: all of them (every operation is registered,
+        include/rbdkit/ops/registry.hpp)"""
+        return self._core.operations()
 
-    # ---- dispatch
+    # ---- an operation this handle was not built with (the others are compiled callables)
     def _call(self, op, args, kwargs):
-        if op not in self._ops:
-            alg = OPERATION_ALGORITHM[op]
-            raise ValueError(f"{op}: this handle was not built with it; add '{alg}' to algorithms "
-                             f"(Handle(model, algorithms=[..., '{alg}']))")
-        method = getattr(self.rbd, op)
-        accepts = "output_convention" in inspect.signature(getattr(RBD, op)).parameters
-        conv = kwargs.get("output_convention", self.output_convention) if accepts else self.output_convention
-        if accepts:
-            kwargs = {**kwargs, "output_convention": conv}
-        elif (conv != "pinocchio" and not self._convention_noop
-              and OPERATION_ALGORITHM[op] not in CONVENTION_NEUTRAL):
-            raise ValueError(f"{op}: does not support output_convention='{conv}' on a model with free-flyer or "
-                             f"spherical joints; use a handle with output_convention='pinocchio'")
-        r = method(*args, **kwargs)
-        r = RESULTS[op](r) if op in RESULTS else r
-        return _to_dtype(r, self.dtype)
+        alg = OPERATION_ALGORITHM[op]
+        raise ValueError(f"{op}: this handle was not built with it; add '{alg}' to algorithms "
+                         f"(Handle(model, algorithms=[..., '{alg}']))")
 
     def __repr__(self):
         return (f"<rbdkit.Handle of {self.model!r}: {len(self.available_operations())} operations, "

@@ -325,9 +325,10 @@ bool parse_param(const rbd::Model& m, const ops::ArgSpec& a, PyObject* o, int k,
   }
 }
 
-// the default of a parameter into the call
-void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c) {
+// the default of a parameter into the call (an output convention: the handle's)
+void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c, int convention) {
   if (a.kind == ops::kReal || a.kind == ops::kTimeStep || a.kind == ops::kPositive) c.real[k] = a.value;
+  else if (a.kind == ops::kConvention) c.choice[k] = convention;
   else c.choice[k] = static_cast<int>(a.value);
 }
 
@@ -380,7 +381,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     } else if (!slot[k]) {
       if (std::isnan(a.value))
         return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
-      default_param(a, k, c);
+      default_param(a, k, c, self->handle->h->output_convention());
     } else if (!parse_param(m, a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput, ee)) {
       return nullptr;
     }
@@ -639,11 +640,11 @@ void bind_ops(nb::module_& m) {
       .def(
           "__init__",
           [](OpHandle* self, const rbd::Model& model, const std::vector<std::string>& algorithms, int threads,
-             const std::string& dtype) {
-            new (self) OpHandle{std::make_unique<rbd::Handle>(model, algorithms, threads, dtype),
+             const std::string& dtype, const std::string& output_convention) {
+            new (self) OpHandle{std::make_unique<rbd::Handle>(model, algorithms, threads, dtype, output_convention),
                                 dtype == "float32" ? NPY_FLOAT : NPY_DOUBLE};
           },
-          "model"_a, "algorithms"_a, "threads"_a, "dtype"_a)
+          "model"_a, "algorithms"_a, "threads"_a, "dtype"_a, "output_convention"_a = "pinocchio")
       .def_prop_ro("threads", [](const OpHandle& h) { return h.h->threads(); })
       .def_prop_ro("dtype", [](const OpHandle& h) { return h.h->dtype(); })
       .def("has", [](const OpHandle& h, const std::string& name) { return h.h->has(name); }, "name"_a)

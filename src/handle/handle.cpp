@@ -132,7 +132,17 @@ Handle::Handle(Model model, const std::vector<std::string>& algorithms, int thre
     : Handle(std::move(model), algorithms, threads, "float64") {}
 
 Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype)
+    : Handle(std::move(model), algorithms, threads, dtype, "pinocchio") {}
+
+Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype,
+               const std::string& output_convention)
     : model_(std::move(model)), algorithms_(resolve_algorithms(algorithms)), threads_(threads), dtype_(dtype) {
+  if (output_convention != "pinocchio" && output_convention != "mujoco")
+    throw std::invalid_argument("output_convention: expected 'pinocchio' or 'mujoco', got '" + output_convention +
+                                "'");
+  convention_ = output_convention == "mujoco" ? kMujocoConvention : kPinocchioConvention;
+  for (const BodyDesc<double>& b : model_.bodies)
+    quaternion_joints_ = quaternion_joints_ || (!b.mimic && (b.type == kFree || b.type == kSpherical));
   if (threads < 0)
     throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
                                 std::to_string(threads));
@@ -162,6 +172,11 @@ void Handle::run(int op, const ops::OpCall& call) {
   if (call.B <= 0)
     throw std::invalid_argument(std::string(e.spec->name) + ": B: expected a positive batch size, got " +
                                 std::to_string(call.B));
+  if (convention_ == kMujocoConvention && quaternion_joints_ && !takes_convention(*e.spec) &&
+      std::strcmp(e.spec->algorithm, "mujoco_convention") != 0)
+    throw std::invalid_argument(std::string(e.spec->name) +
+                                ": does not support output_convention='mujoco' on a model with free-flyer or "
+                                "spherical joints; use a handle with output_convention='pinocchio'");
   if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
   else ops::check_call<double>(model_, *e.spec, call);
   if (ops::takes_names(*e.spec)) {  // frames and end effectors for the kernels, then the same call
@@ -232,12 +247,23 @@ struct Call : ops::OpCall {
 template <typename Op> constexpr int id_of() { return ops::index_of<Op>(ops::AllOps{}); }
 }  // namespace
 
+bool Handle::takes_convention(const ops::OpSpec& op) {
+  for (int k = 0; k < op.n_args; ++k)
+    if (op.args[k].kind == ops::kConvention) return true;
+  return false;
+}
+
 void Handle::run_typed(int op, const ops::OpCall& call) {
+  const ops::OpSpec& spec = *ops::op_table()[op].spec;
   if (dtype_ != "float64")
-    throw std::invalid_argument(std::string(ops::op_table()[op].spec->name) +
+    throw std::invalid_argument(std::string(spec.name) +
                                 ": the typed methods take float64 arrays; this handle is float32 (run() takes "
                                 "float arrays)");
-  run(op, call);
+  if (!takes_convention(spec)) return run(op, call);
+  ops::OpCall c = call;  // the handle's output convention
+  for (int k = 0; k < spec.n_args; ++k)
+    if (spec.args[k].kind == ops::kConvention) c.choice[k] = convention_;
+  run(op, c);
 }
 
 // ---- dynamics

@@ -116,6 +116,39 @@ TEST(Handle, OnlyTheBuiltOperations) {
   h.crba(2, s.q.data(), out.data());  // built: runs
 }
 
+// the handle's output convention: the default of the operations that take
+// one (typed methods included), equal to batch::integrator in that
+// convention; on a floating base the others are refused, but the conversions
+TEST(Handle, OutputConventionIsTheHandles) {
+  const Model m = hyq_floating();
+  Handle h(m, {}, 0, "float64", "mujoco");
+  EXPECT_EQ(h.output_convention(), rbd::kMujocoConvention);
+  const Samples s(m, 2, 3);
+  std::vector<double> qpos(2 * m.nq), qvel(2 * m.nv), x(2 * (m.nq + m.nv)), ref(x.size());
+  for (int k = 0; k < 2; ++k) {
+    rbd::configuration_to_mujoco(m.view(), s.q.data() + k * m.nq, qpos.data() + k * m.nq);
+    std::copy_n(s.qd.data() + k * m.nv, m.nv, qvel.data() + k * m.nv);
+  }
+  h.integrator(2, qpos.data(), qvel.data(), s.u.data(), nullptr, 0.01, -9.81, rbd::kRK4, x.data());
+  rbd::batch::integrator(m, 2, qpos.data(), qvel.data(), s.u.data(), nullptr, 0.01, -9.81, rbd::kRK4, ref.data(),
+                         rbd::kMujocoConvention);
+  for (size_t k = 0; k < x.size(); ++k) EXPECT_EQ(x[k], ref[k]) << k;
+  std::vector<double> M(2 * m.nv * m.nv);
+  try {
+    h.crba(2, s.q.data(), M.data());
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "crba: does not support output_convention='mujoco' on a model with free-flyer or "
+                           "spherical joints; use a handle with output_convention='pinocchio'");
+  }
+  // without quaternion joints the conventions agree: every operation runs
+  Handle hi(Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false), {}, 0, "float64", "mujoco");
+  const Samples si(hi.model(), 2, 4);
+  std::vector<double> Mi(2 * 7 * 7);
+  hi.crba(2, si.q.data(), Mi.data());
+  EXPECT_THROW(Handle(m, {}, 0, "float64", "MuJoCo"), std::invalid_argument);
+}
+
 TEST(Handle, BadInputIsReportedByTheEntryPoint) {
   Handle h(hyq_floating());
   Samples s(h.model(), 2, 2);

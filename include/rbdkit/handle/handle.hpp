@@ -66,10 +66,18 @@ class Handle {
   // dtype "float64" or "float32"; a float32 handle computes the registered
   // operations on the engine (one thread when threads = 0)
   Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype);
+  // output_convention "pinocchio" or "mujoco": the convention of the
+  // operations that take one (the integrators, the plant step, the costs) when
+  // a call does not say; on a model with free-flyer or spherical joints, a
+  // MuJoCo handle refuses the operations that take none (their values are
+  // Pinocchio's), except the conversions between the conventions
+  Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype,
+         const std::string& output_convention);
 
   const Model& model() const { return model_; }
   int threads() const { return threads_; }
   const std::string& dtype() const { return dtype_; }
+  int output_convention() const { return convention_; }  // OutputConvention
   // the resolved algorithm list (the requested ones and their dependencies)
   const std::vector<std::string>& algorithms() const { return algorithms_; }
   // the operations this handle's algorithms provide, in table order (the
@@ -83,6 +91,8 @@ class Handle {
   // whose arrays hold the handle's dtype: the values are checked
   // (ops::check_call), then the engine (float32, or a float64 batch of B > 1 with
   // threads > 0) or the serial loop on the calling thread runs them. The Python bindings call this.
+  // A call's output_convention argument is the caller's (the bindings and
+  // the typed methods default it to the handle's).
   void run(int op, const ops::OpCall& call);
   bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
 
@@ -158,6 +168,7 @@ class Handle {
   void require(const char* operation) const;  // throws unless has(operation)
   void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
   void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
+  static bool takes_convention(const ops::OpSpec& op);  // an output_convention argument
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
   Model model_;
@@ -166,6 +177,8 @@ class Handle {
   std::vector<bool> op_enabled_;  // per registered operation: provided by the algorithms
   int threads_ = 0;
   std::string dtype_ = "float64";
+  int convention_ = 0;  // OutputConvention (plant/mujoco_convention.hpp): 0 Pinocchio, 1 MuJoCo
+  bool quaternion_joints_ = false;  // free-flyer or spherical joints: the conventions differ
   WorkspaceCache ws_;  // linear until an O(n²) operation runs
   std::vector<double> op_scratch_;  // the serial loop's scratch
   std::mutex run_;  // one run() at a time (the workspace is shared)
