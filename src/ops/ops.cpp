@@ -2,6 +2,7 @@
 // ops::AllOps, the checks of a call, and the serial per-sample loop.
 #include "rbdkit/ops/table.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -83,7 +84,8 @@ template <typename T> void check_configuration_values(const Model& m, const T* q
   // the message: the bounds of T first, then the float64 checks (joint angles, quaternions)
   const std::string label = label_of(name, batched, s);
   if (!finite_values(q, m.nq)) throw_values(q, m.nq, label);
-  std::vector<double> qd(q, q + m.nq);
+  std::vector<double> qd(static_cast<size_t>(m.nq));  // (sized first: nq >= 0, as the compiler cannot see)
+  std::copy(q, q + qd.size(), qd.begin());
   for (size_t i = 0; i < m.bodies.size(); ++i) {
     const BodyDesc<double>& b = m.bodies[i];
     if (!b.mimic && (b.type == kRevolute || b.type == kHelical) && std::fabs(qd[b.q_idx]) > Bounds<T>::angle) {

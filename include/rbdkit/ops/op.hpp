@@ -196,7 +196,7 @@ enum OpKernel : unsigned char {
 struct OpSpec {
   const char* name;       // the operation (the rbdkit.RBD method)
   const char* algorithm;  // the handle algorithm providing it (handle.hpp's table)
-  const char* family;     // the algorithm family (its header under algorithms/)
+  const char* family;     // the algorithm family (its header under algorithms/ or plant/)
   const char* doc;        // one paragraph: what it computes, shapes
   int n_args;
   ArgSpec args[kMaxArgs];  // in call order
