@@ -6,19 +6,13 @@ integrator_type: euler, semi_implicit_euler, midpoint, rk4, trapezoidal
 (explicit two-stage Heun) or constant_acceleration; see
 include/rbdkit/plant/integrators.hpp for the schemes.
 output_convention: "pinocchio" (default) or "mujoco" (MuJoCo's qpos/qvel,
-frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see _mujoco.py).
+frames and retraction for q, qd, u, x⁺, [A | B] and the step Hessian; see
+docs/conventions.md, "MuJoCo output convention").
 """
 
-from . import _core
 from ._checks import MAX_TIME_STEP, check_scalar
 
 INTEGRATORS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
-
-
-def integrator_code(name):
-    if not isinstance(name, str):
-        raise TypeError(f"integrator_type: expected a string, got {type(name).__name__}")
-    return _core.integrator_from_name(name)
 
 
 def check_dt(dt):

@@ -20,7 +20,6 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
-void bind_integrators(nb::module_& m);  // bind_integrators.cpp
 using rbd::Model;
 using rbd_py::In;
 using rbd_py::Out;
@@ -30,7 +29,6 @@ using rbd_py::width;
 
 void bind_kinematics(nb::module_& m);  // bind_kinematics.cpp
 void bind_handle(nb::module_& m);  // bind_handle.cpp
-void bind_mujoco(nb::module_& m);  // bind_mujoco.cpp
 void bind_solver(nb::module_& m);  // bind_solver.cpp
 void bind_engine(nb::module_& m);  // bind_engine.cpp
 void bind_builder(nb::module_& m);  // bind_builder.cpp
@@ -76,7 +74,6 @@ NB_MODULE(_core, m) {
   m.attr("MAX_INPUT") = rbd::kMaxInput;
   m.attr("MAX_ANGLE") = rbd::kMaxAngle;
   m.attr("MAX_TIME_STEP") = rbd::kMaxTimeStep;
-  bind_integrators(m);
 
   nb::class_<Model>(m, "Model")
       .def_static("from_urdf_file", &Model::from_urdf_file, "path"_a, "floating_base"_a = false, "strict"_a = false,
@@ -160,7 +157,6 @@ NB_MODULE(_core, m) {
 
   bind_kinematics(m);
   bind_handle(m);
-  bind_mujoco(m);
   bind_solver(m);
   bind_engine(m);
   bind_builder(m);

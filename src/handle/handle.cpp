@@ -7,8 +7,6 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "rbdkit/batch/costs_api.hpp"
-#include "rbdkit/batch/derivatives_api.hpp"
 #include "rbdkit/batch/integrators_api.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
@@ -141,8 +139,6 @@ Handle::Handle(Model model, const std::vector<std::string>& algorithms, int thre
     throw std::invalid_argument("output_convention: expected 'pinocchio' or 'mujoco', got '" + output_convention +
                                 "'");
   convention_ = output_convention == "mujoco" ? kMujocoConvention : kPinocchioConvention;
-  for (const BodyDesc<double>& b : model_.bodies)
-    quaternion_joints_ = quaternion_joints_ || (!b.mimic && (b.type == kFree || b.type == kSpherical));
   if (threads < 0)
     throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
                                 std::to_string(threads));
@@ -154,6 +150,14 @@ Handle::Handle(Model model, const std::vector<std::string>& algorithms, int thre
   op_enabled_.assign(ops::op_table().size(), false);
   for (const ops::OpEntry& e : ops::op_table())
     op_enabled_[e.id] = std::find(operations_.begin(), operations_.end(), e.spec->name) != operations_.end();
+  // the conventions differ on free-flyer and spherical joints
+  bool quaternion_joints = false;
+  for (const BodyDesc<double>& b : model_.bodies)
+    quaternion_joints = quaternion_joints || (!b.mimic && (b.type == kFree || b.type == kSpherical));
+  op_refused_.assign(ops::op_table().size(), false);
+  for (const ops::OpEntry& e : ops::op_table())
+    op_refused_[e.id] = convention_ == kMujocoConvention && quaternion_joints && !ops::takes_convention(*e.spec) &&
+                        std::strcmp(e.spec->algorithm, "mujoco_convention") != 0;
 }
 
 std::vector<std::string> Handle::available_operations() const { return operations_; }
@@ -172,8 +176,7 @@ void Handle::run(int op, const ops::OpCall& call) {
   if (call.B <= 0)
     throw std::invalid_argument(std::string(e.spec->name) + ": B: expected a positive batch size, got " +
                                 std::to_string(call.B));
-  if (convention_ == kMujocoConvention && quaternion_joints_ && !takes_convention(*e.spec) &&
-      std::strcmp(e.spec->algorithm, "mujoco_convention") != 0)
+  if (op_refused_[op])
     throw std::invalid_argument(std::string(e.spec->name) +
                                 ": does not support output_convention='mujoco' on a model with free-flyer or "
                                 "spherical joints; use a handle with output_convention='pinocchio'");
@@ -247,19 +250,13 @@ struct Call : ops::OpCall {
 template <typename Op> constexpr int id_of() { return ops::index_of<Op>(ops::AllOps{}); }
 }  // namespace
 
-bool Handle::takes_convention(const ops::OpSpec& op) {
-  for (int k = 0; k < op.n_args; ++k)
-    if (op.args[k].kind == ops::kConvention) return true;
-  return false;
-}
-
 void Handle::run_typed(int op, const ops::OpCall& call) {
   const ops::OpSpec& spec = *ops::op_table()[op].spec;
   if (dtype_ != "float64")
     throw std::invalid_argument(std::string(spec.name) +
                                 ": the typed methods take float64 arrays; this handle is float32 (run() takes "
                                 "float arrays)");
-  if (!takes_convention(spec)) return run(op, call);
+  if (!ops::takes_convention(spec)) return run(op, call);
   ops::OpCall c = call;  // the handle's output convention
   for (int k = 0; k < spec.n_args; ++k)
     if (spec.args[k].kind == ops::kConvention) c.choice[k] = convention_;

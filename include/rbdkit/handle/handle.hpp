@@ -168,7 +168,6 @@ class Handle {
   void require(const char* operation) const;  // throws unless has(operation)
   void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
   void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
-  static bool takes_convention(const ops::OpSpec& op);  // an output_convention argument
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
   Model model_;
@@ -178,7 +177,9 @@ class Handle {
   int threads_ = 0;
   std::string dtype_ = "float64";
   int convention_ = 0;  // OutputConvention (plant/mujoco_convention.hpp): 0 Pinocchio, 1 MuJoCo
-  bool quaternion_joints_ = false;  // free-flyer or spherical joints: the conventions differ
+  // per registered operation: refused by the output convention (a MuJoCo handle on a model with
+  // free-flyer or spherical joints, an operation without a convention argument, not a conversion)
+  std::vector<bool> op_refused_;
   WorkspaceCache ws_;  // linear until an O(n²) operation runs
   std::vector<double> op_scratch_;  // the serial loop's scratch
   std::mutex run_;  // one run() at a time (the workspace is shared)

@@ -7,9 +7,9 @@
 //   integrate(q, v)             q (nq), v (nv)      -> q_next (nq)
 //   difference(q0, q1)          q0, q1 (nq)         -> v (nv), integrate(q0, v) = q1
 //   dintegrate(q, v, arg)       arg 0: ∂/∂q, 1: ∂/∂v -> J (nv x nv, row-major)
-// integrate and dintegrate read only the model's structure: their values may
-// be of another scalar V than the model's (dual numbers: d2Integrate)
 //   ddifference(q0, q1, arg)    arg 0: ∂/∂q0, 1: ∂/∂q1 -> J (nv x nv)
+// integrate and dintegrate read only the model's structure: their values may
+// be of another scalar V than the model's (dual numbers: d2Integrate).
 #pragma once
 
 #include "rbdkit/model/joint_types.hpp"

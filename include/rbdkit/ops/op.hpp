@@ -215,6 +215,13 @@ struct OpSpec {
   OpKernel kernel = kFlattened;
 };
 
+// whether an operation takes an output convention (a kConvention argument)
+constexpr bool takes_convention(const OpSpec& op) {
+  for (int k = 0; k < op.n_args; ++k)
+    if (op.args[k].kind == kConvention) return true;
+  return false;
+}
+
 // the outputs a call must provide: those every surface asks for
 constexpr unsigned required_outputs(const OpSpec& op) {
   return op.returns & (op.handle_returns ? op.handle_returns : op.returns) & ~op.optional_outputs;

@@ -147,13 +147,6 @@ template <typename P> P nonfinite_lanes(const P* x, long n) {
   return (a0 + a1) + (a2 + a3);
 }
 
-// whether Op takes an output convention (the integrators and the plant step)
-template <typename Op> constexpr bool has_convention() {
-  for (int k = 0; k < Op::spec.n_args; ++k)
-    if (Op::spec.args[k].kind == ops::kConvention) return true;
-  return false;
-}
-
 // one pack through Op's kernel: a function of its own with everything it
 // calls inlined (the engine's speed), called once per pack. Defaults: the
 // call has no optional array and the Pinocchio convention, and the kernel
@@ -233,7 +226,7 @@ template <typename T, typename Op> struct Job {
     }
     a.scratch = v;
     // the default parameters' kernel (operations with a convention only)
-    bool defaults = has_convention<Op>();
+    bool defaults = ops::takes_convention(Op::spec);
     for (int k = 0; k < op.n_args; ++k) {
       if (op.args[k].kind == ops::kOptionalArray && in[k].p) defaults = false;
       if (op.args[k].kind == ops::kConvention && params.choice[k] != kPinocchioConvention) defaults = false;
@@ -256,7 +249,7 @@ template <typename T, typename Op> struct Job {
         bool ok;
         if constexpr (Op::spec.kernel == ops::kCalled)
           ok = run_pack_called<Op, false>(e->mv, buf.ws, a);
-        else if constexpr (has_convention<Op>())
+        else if constexpr (ops::takes_convention(Op::spec))
           ok = defaults ? run_pack<Op, true>(e->mv, buf.ws, a) : run_pack<Op, false>(e->mv, buf.ws, a);
         else
           ok = run_pack<Op, false>(e->mv, buf.ws, a);
