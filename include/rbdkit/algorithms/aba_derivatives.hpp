@@ -37,15 +37,28 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
     }
     return;
   }
-  S* Dc = w.dense2;  // a copy of D (nv x cols, cols <= max(nv, 6))
+  S* RBD_RESTRICT Dc = w.dense2;  // a copy of D (nv x cols, cols <= max(nv, 6))
   for (int k = 0; k < nv * cols; ++k) Dc[k] = D[k];
+  // out row r, eight columns at a time: the eight sums stay in registers over k
+  constexpr int T = 8;
   for (int r = 0; r < nv; ++r) {
-    S* out = D + r * cols;
-    for (int c = 0; c < cols; ++c) out[c] = S(0);
-    for (int k = 0; k < nv; ++k) {
-      const S a = -Mi[r * nv + k];
-      const S* row = Dc + k * cols;
-      for (int c = 0; c < cols; ++c) out[c] += a * row[c];
+    S* RBD_RESTRICT out = D + r * cols;
+    const S* RBD_RESTRICT Mi_r = Mi + r * nv;
+    int c0 = 0;
+    for (; c0 + T <= cols; c0 += T) {
+      S acc[T];
+      for (int j = 0; j < T; ++j) acc[j] = S(0);
+      for (int k = 0; k < nv; ++k) {
+        const S a = Mi_r[k];
+        const S* RBD_RESTRICT row = Dc + k * cols + c0;
+        for (int j = 0; j < T; ++j) acc[j] += a * row[j];
+      }
+      for (int j = 0; j < T; ++j) out[c0 + j] = -acc[j];
+    }
+    for (int c = c0; c < cols; ++c) {
+      S acc = S(0);
+      for (int k = 0; k < nv; ++k) acc += Mi_r[k] * Dc[k * cols + c];
+      out[c] = -acc;
     }
   }
 }
@@ -54,6 +67,7 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
 template <typename S>
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
+  // qdd by ABA, as the integrators compute it (a step and its gradient give the same x⁺, bit for bit)
   if (!aba(m, w, q, qd, tau, fext, gravity, qdd)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd);
   if (!prepare_minv(m, w, q)) return false;

@@ -50,7 +50,10 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     // own block: D⁻¹
     for (int k = 0; k < ni; ++k)
       for (int l = 0; l < ni; ++l) Minv[(vi + k) * nv + vi + l] = Dinv[k * ni + l];
-    // descendants' columns: -D⁻¹ Sᵀ F
+    // descendants' columns: -D⁻¹ Sᵀ F (one DoF, the common case: a scalar D⁻¹)
+    if (ni == 1) {
+      for (int c = vi + 1; c < c_end; ++c) Minv[vi * nv + c] = -Dinv[0] * dot(Sw[0], load_force(w.F + 6 * c));
+    } else
     for (int c = vi + ni; c < c_end; ++c) {
       const Force<S> fc = load_force(w.F + 6 * c);
       S sf[6];
@@ -84,6 +87,16 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
     const S* Dinv = w.Dinv + 36 * i;
     S* P = w.P + 6 * nv * i;
     const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
+    if (ni == 1 && Pp) {  // one DoF: a scalar D⁻¹, one U and one S
+      for (int c = vi; c < nv; ++c) {
+        Motion<S> pc = load_motion(Pp + 6 * c);
+        S& x = Minv[vi * nv + c];
+        x -= Dinv[0] * dot(pc, U[0]);
+        pc += x * Sw[0];
+        store(pc, P + 6 * c);
+      }
+      continue;
+    }
     for (int c = vi; c < nv; ++c) {
       Motion<S> pc = Motion<S>::zero();
       if (Pp) {
