@@ -16,9 +16,9 @@ on batched arrays. Conventions: docs/conventions.md.
 from ._model import Model
 from ._builder import ModelBuilder
 from ._rbd import RBD
-from ._handle import Handle
+from ._handle import Handle, cuda_available
 from ._solver import solve_trajectory, TrajectoryResult
 from . import robots
 
-__all__ = ["Model", "ModelBuilder", "RBD", "Handle", "robots", "solve_trajectory", "TrajectoryResult"]
+__all__ = ["Model", "ModelBuilder", "RBD", "Handle", "cuda_available", "robots", "solve_trajectory", "TrajectoryResult"]
 __version__ = "0.1.0"

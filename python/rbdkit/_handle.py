@@ -45,7 +45,7 @@ OPERATION_ALGORITHM = {op: name for name, (ops, _) in ALGORITHMS.items() for op 
 OPERATIONS = tuple(OPERATION_ALGORITHM)  # every operation a handle can have, in table order
 
 DTYPES = ("float64", "float32")
-BACKENDS = ("cpu",)
+BACKENDS = ("cpu", "cuda")
 CONVENTIONS = ("pinocchio", "mujoco")
 
 
@@ -74,12 +74,37 @@ def _check_dtype(dtype):
 
 
 def _check_backend(backend):
-    if backend == "cuda":
-        raise ValueError("backend: 'cuda' is not available: this build of rbdkit has no CUDA handle; "
-                         "expected 'cpu'")
     if not isinstance(backend, str) or backend not in BACKENDS:
-        raise ValueError(f"backend: expected 'cpu', got {backend!r}")
+        raise ValueError(f"backend: expected 'cpu' or 'cuda', got {backend!r}")
     return backend
+
+
+def cuda_available():
+    """(whether this build has the real CUDA kernels, the CUDA devices this process sees);
+    backend='cuda' needs both, or RBDKIT_CUDA_INTERPRET=1 (the kernels' source on the CPU)"""
+    compiled, devices = _core.cuda_info()
+    return bool(compiled), int(devices)
+
+
+def device_empty(proto, shape, dtype):
+    """a new device array of `shape` and `dtype` on the device of `proto` (a
+    device array passed to a backend='cuda' handle), made by proto's framework:
+    the outputs of a call on device arrays. PyTorch and CuPy arrays are
+    recognised; another type may offer a classmethod `_rbdkit_empty(shape,
+    dtype, like)` (the tests' NumPy stand-ins do)."""
+    make = getattr(type(proto), "_rbdkit_empty", None)
+    if make is not None:
+        return make(shape, dtype, proto)
+    module = type(proto).__module__.split(".")[0]
+    if module == "torch":
+        import torch
+        return torch.empty(shape, dtype=getattr(torch, dtype), device=proto.device)
+    if module == "cupy":
+        import cupy
+        with proto.device:
+            return cupy.empty(shape, dtype=dtype)
+    raise TypeError(f"device arrays of type {type(proto).__module__}.{type(proto).__name__}: rbdkit cannot make "
+                    f"the outputs on their device (PyTorch and CuPy arrays are supported)")
 
 
 def _check_convention(conv):
@@ -113,7 +138,7 @@ class Handle:
     backend, dtype (numpy dtype), threads, output_convention."""
 
     def __init__(self, model, algorithms=None, backend="cpu", dtype="float64", threads=None,
-                 output_convention="pinocchio"):
+                 output_convention="pinocchio", stream=None):
         if isinstance(model, (str, os.PathLike)):
             model = Model.from_urdf(model)
         if not isinstance(model, Model):
@@ -131,9 +156,32 @@ class Handle:
         # engine with these threads, in this output convention, as compiled
         # callables (instance attributes, shadowing the generic methods of the class)
         self._core = _core.OpHandle(model._core, list(self.algorithms), self.threads, self.dtype.name,
-                                    self.output_convention)
+                                    self.output_convention, self.backend)
+        if stream is not None:
+            self.set_stream(stream)
         for op in self._core.operations():
             self.__dict__[op] = self._core.op(op, True)
+
+    # ---- the CUDA backend
+    @property
+    def device(self):
+        """the device a backend='cuda' handle computes on ("interpret (CPU)" in
+        interpret mode); None on the CPU backend"""
+        return self._core.device
+
+    def set_stream(self, stream):
+        """the CUDA stream a backend='cuda' handle launches on: a cudaStream_t
+        as an int, an object with a `cuda_stream` or `ptr` attribute (PyTorch,
+        CuPy), or None / 0 for the handle's own stream"""
+        if stream is None:
+            stream = 0
+        for attr in ("cuda_stream", "ptr"):
+            if not isinstance(stream, (int, np.integer)) and hasattr(stream, attr):
+                stream = getattr(stream, attr)
+        if isinstance(stream, (bool, np.bool_)) or not isinstance(stream, (int, np.integer)) or stream < 0:
+            raise TypeError(f"stream: expected a CUDA stream (an int handle, or an object with cuda_stream or "
+                            f"ptr), got {type(stream).__name__}")
+        self._core.set_stream(int(stream))
 
     # ---- what the handle has
     @staticmethod

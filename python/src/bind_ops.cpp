@@ -334,6 +334,81 @@ void default_param(const ops::ArgSpec& a, int k, ops::OpCall& c, int convention)
 
 bool is_array(const ops::ArgSpec& a) { return a.kind == ops::kArray || a.kind == ops::kOptionalArray; }
 
+// ---------------------------------------------------------------- device arrays (a backend='cuda' handle)
+
+// an array in device memory, described by its __cuda_array_interface__ (CuPy, PyTorch, JAX, Numba; in
+// interpret mode a NumPy stand-in whose "device" memory is host memory)
+struct DeviceArray {
+  void* data = nullptr;
+  int nd = 0;
+  npy_intp dims[ops::kMaxRank + 1] = {};
+};
+
+bool has_device_interface(PyObject* o) {
+  return !PyArray_Check(o) && PyObject_HasAttrString(o, "__cuda_array_interface__");
+}
+
+// o's __cuda_array_interface__: C-contiguous, of the handle's dtype (typestr '<f8' / '<f4'), rank <= max_nd;
+// false with a TypeError / ValueError naming the argument
+bool as_device_array(PyObject* o, const char* name, int type, int max_nd, DeviceArray& out) {
+  PyObject* cai = PyObject_GetAttrString(o, "__cuda_array_interface__");
+  if (!cai) return false;
+  // false with an exception naming the argument (cai released)
+  auto bad = [&](PyObject* exc, const std::string& why) {
+    Py_DECREF(cai);
+    fail(exc, std::string(name) + ": " + why);
+    return false;
+  };
+  if (!PyDict_Check(cai)) return bad(PyExc_TypeError, "__cuda_array_interface__ is not a dict");
+  PyObject* shape = PyDict_GetItemString(cai, "shape");
+  PyObject* typestr = PyDict_GetItemString(cai, "typestr");
+  PyObject* data = PyDict_GetItemString(cai, "data");
+  PyObject* strides = PyDict_GetItemString(cai, "strides");
+  if (!shape || !PyTuple_Check(shape) || !typestr || !PyUnicode_Check(typestr) || !data || !PyTuple_Check(data) ||
+      PyTuple_GET_SIZE(data) < 1)
+    return bad(PyExc_TypeError, "a malformed __cuda_array_interface__ (expected shape, typestr and data)");
+  const char* want = type == NPY_FLOAT ? "<f4" : "<f8";
+  const std::string got = text_of(typestr);
+  if (got != want)
+    return bad(PyExc_TypeError, std::string("expected a device array of dtype ") +
+                                    (type == NPY_FLOAT ? "float32" : "float64") + " (typestr '" + want +
+                                    "', the handle's; device arrays are not converted), got typestr '" + got + "'");
+  out.nd = static_cast<int>(PyTuple_GET_SIZE(shape));
+  if (out.nd > max_nd)
+    return bad(PyExc_ValueError, "a device array of rank " + std::to_string(out.nd) + " (expected at most " +
+                                     std::to_string(max_nd) + ")");
+  for (int j = 0; j < out.nd; ++j) out.dims[j] = PyLong_AsSsize_t(PyTuple_GET_ITEM(shape, j));
+  if (PyErr_Occurred()) {
+    Py_DECREF(cai);
+    return false;
+  }
+  if (strides && strides != Py_None) {  // C-contiguous strides are allowed, others are not
+    npy_intp expect = type == NPY_FLOAT ? 4 : 8;
+    bool contiguous = PyTuple_Check(strides) && PyTuple_GET_SIZE(strides) == out.nd;
+    for (int j = out.nd - 1; contiguous && j >= 0; --j) {
+      if (out.dims[j] > 1 && PyLong_AsSsize_t(PyTuple_GET_ITEM(strides, j)) != expect) contiguous = false;
+      expect *= out.dims[j];
+    }
+    if (!contiguous) return bad(PyExc_ValueError, "expected a C-contiguous device array");
+  }
+  out.data = PyLong_AsVoidPtr(PyTuple_GET_ITEM(data, 0));
+  Py_DECREF(cai);
+  return !PyErr_Occurred();
+}
+
+// a new device array of `shape` and the handle's dtype, on proto's device, by proto's framework
+PyObject* device_empty(PyObject* proto, PyObject* shape, int type) {
+  static PyObject* fn = nullptr;
+  if (!fn) {
+    PyObject* mod = PyImport_ImportModule("rbdkit._handle");
+    if (!mod) return nullptr;
+    fn = PyObject_GetAttrString(mod, "device_empty");
+    Py_DECREF(mod);
+    if (!fn) return nullptr;
+  }
+  return PyObject_CallFunction(fn, "OOs", proto, shape, type == NPY_FLOAT ? "float32" : "float64");
+}
+
 PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObject* kwnames) {
   OpFn* self = reinterpret_cast<OpFn*>(self_);
   const ops::OpSpec& op = *self->spec;
@@ -389,6 +464,10 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   Refs refs;
   long B = -1;
   int source = -1;
+  // device arrays (all of a call's arrays, or none): the first one given, whose framework allocates the outputs
+  bool device = false;
+  PyObject* device_proto = nullptr;
+  int first_array = -1;
   for (int k = 0; k < op.n_args; ++k) {
     const ops::ArgSpec& a = op.args[k];
     if (!is_array(a)) continue;
@@ -400,12 +479,26 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     }
     if (a.kind == ops::kOptionalArray && (o == Py_None || ((PyList_Check(o) || PyTuple_Check(o)) && PySequence_Size(o) == 0)))
       continue;
-    PyArrayObject* wide;
-    PyArrayObject* arr = as_array(o, a.name, type, refs, &wide);
-    if (!arr) return nullptr;
+    PyArrayObject* wide = nullptr;
+    PyArrayObject* arr = nullptr;
+    DeviceArray dev;
+    const bool on_device = self->handle->h->cuda() && has_device_interface(o);
+    if (first_array >= 0 && on_device != device)
+      return fail(PyExc_TypeError, std::string(a.name) + ": expected " + (device ? "a device" : "a host") +
+                                       " array like " + op.args[first_array].name +
+                                       " (a call takes host arrays or device arrays, not both)");
+    if (first_array < 0) first_array = k;
+    device = on_device;
+    if (device) {
+      if (!device_proto) device_proto = o;
+      if (!as_device_array(o, a.name, type, a.shape.rank + 1, dev)) return nullptr;
+    } else {
+      arr = as_array(o, a.name, type, refs, &wide);
+      if (!arr) return nullptr;
+    }
     // (shape) or (B, shape)
-    const int r = a.shape.rank, nd = PyArray_NDIM(arr);
-    const npy_intp* d = PyArray_DIMS(arr);
+    const int r = a.shape.rank, nd = device ? dev.nd : PyArray_NDIM(arr);
+    const npy_intp* d = device ? dev.dims : PyArray_DIMS(arr);
     npy_intp want[ops::kMaxRank];
     for (int j = 0; j < r; ++j) want[j] = ops::extent(a.shape.d[j], m.nq, m.nv, m.nb(), c.n_ee);
     bool batched = false, ok = false;
@@ -415,7 +508,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       for (int j = 0; j < r; ++j) ok &= d[o0 + j] == want[j];
       batched = nd == r + 1;
     }
-    if (!ok && r > 1 && a.shape.d[0] == ops::kNee && nd == r - 1) {  // one row for every end effector
+    if (!ok && r > 1 && a.shape.d[0] == ops::kNee && nd == r - 1 && !device) {  // one row for every end effector
       bool tail = true;
       for (int j = 1; j < r; ++j) tail &= d[j - 1] == want[j];
       if (tail) {
@@ -472,7 +565,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
       if (!c) return nullptr;
       arr = reinterpret_cast<PyArrayObject*>(refs.keep(c));
     }
-    c.in[k] = PyArray_DATA(arr);
+    c.in[k] = device ? dev.data : PyArray_DATA(arr);
     c.batched[k] = batched;
   }
   c.B = B < 0 ? 1 : B;
@@ -487,6 +580,20 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     int nd = 0;
     if (B >= 0) dims[nd++] = B;
     for (int j = 0; j < op.out[o].shape.rank; ++j) dims[nd++] = ops::extent(op.out[o].shape.d[j], m.nq, m.nv, m.nb(), c.n_ee);
+    if (device) {  // on the inputs' device, by their framework (rbdkit._handle.device_empty)
+      PyObject* shape = PyTuple_New(nd);
+      if (!shape) return nullptr;
+      for (int j = 0; j < nd; ++j) PyTuple_SET_ITEM(shape, j, PyLong_FromSsize_t(dims[j]));
+      PyObject* a = device_empty(device_proto, shape, type);
+      Py_DECREF(shape);
+      if (!a) return nullptr;
+      outs[o] = refs.keep(a);
+      DeviceArray da;
+      if (!as_device_array(a, op.out[o].name, type, nd, da)) return nullptr;
+      c.out[o] = da.data;
+      ++nret;
+      continue;
+    }
     PyObject* a = PyArray_SimpleNew(nd, dims, type);
     if (!a) return nullptr;
     outs[o] = refs.keep(a);
@@ -499,7 +606,8 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   std::string msg;
   PyThreadState* ts = c.B > 1 ? PyEval_SaveThread() : nullptr;
   try {
-    self->handle->h->run(self->op, c);
+    if (device) self->handle->h->run_device(self->op, c);
+    else self->handle->h->run(self->op, c);
   } catch (const std::invalid_argument& e) {
     err_type = PyExc_ValueError, msg = e.what();
   } catch (const std::bad_alloc&) {
@@ -512,8 +620,9 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
 
   // ---- results: one array, or a tuple in output order; a 0-d one (a
   // scalar output of an unbatched call) as a NumPy scalar
-  auto result = [](PyObject* a) {
+  auto result = [device](PyObject* a) {
     Py_INCREF(a);
+    if (device) return a;
     return PyArray_NDIM(reinterpret_cast<PyArrayObject*>(a)) == 0 ? PyArray_Return(reinterpret_cast<PyArrayObject*>(a))
                                                                   : a;
   };
@@ -636,16 +745,33 @@ void bind_ops(nb::module_& m) {
     return out;
   });
 
+  // (whether this build has the real CUDA kernels, the CUDA devices this process sees)
+  m.def("cuda_info", [] { return nb::make_tuple(rbd::CudaEngine::cuda_compiled(), rbd::CudaEngine::device_count()); });
+
   nb::class_<OpHandle>(m, "OpHandle")
       .def(
           "__init__",
           [](OpHandle* self, const rbd::Model& model, const std::vector<std::string>& algorithms, int threads,
-             const std::string& dtype, const std::string& output_convention) {
-            new (self) OpHandle{std::make_unique<rbd::Handle>(model, algorithms, threads, dtype, output_convention),
-                                dtype == "float32" ? NPY_FLOAT : NPY_DOUBLE};
+             const std::string& dtype, const std::string& output_convention, const std::string& backend) {
+            const rbd::Backend b = rbd::backend_from_name(backend);
+            auto h = b == rbd::Backend::CUDA
+                         ? std::make_unique<rbd::Handle>(model, algorithms, b, dtype, output_convention, threads)
+                         : std::make_unique<rbd::Handle>(model, algorithms, threads, dtype, output_convention);
+            new (self) OpHandle{std::move(h), dtype == "float32" ? NPY_FLOAT : NPY_DOUBLE};
           },
-          "model"_a, "algorithms"_a, "threads"_a, "dtype"_a, "output_convention"_a = "pinocchio")
+          "model"_a, "algorithms"_a, "threads"_a, "dtype"_a, "output_convention"_a = "pinocchio",
+          "backend"_a = "cpu")
       .def_prop_ro("threads", [](const OpHandle& h) { return h.h->threads(); })
+      // the CUDA engine's device ("interpret (CPU)" in interpret mode); None on the CPU backend
+      .def_prop_ro("device", [](const OpHandle& h) -> nb::object {
+        if (!h.h->cuda()) return nb::none();
+        return nb::str(h.h->cuda()->device_name().c_str());
+      })
+      // the stream a backend='cuda' handle launches on (a cudaStream_t as an int; 0: its own)
+      .def("set_stream", [](OpHandle& h, uintptr_t stream) {
+        if (!h.h->cuda()) throw nb::value_error("stream: a stream needs a handle with backend='cuda'");
+        h.h->cuda()->set_stream(reinterpret_cast<void*>(stream));
+      }, "stream"_a)
       .def_prop_ro("dtype", [](const OpHandle& h) { return h.h->dtype(); })
       .def("has", [](const OpHandle& h, const std::string& name) { return h.h->has(name); }, "name"_a)
       // the registered operations this handle runs, in registry order

@@ -126,6 +126,28 @@ std::string algorithm_of(const std::string& operation) {
   return "";
 }
 
+Backend backend_from_name(const std::string& name) {
+  if (name == "cpu") return Backend::CPU;
+  if (name == "cuda") return Backend::CUDA;
+  throw std::invalid_argument("backend: expected 'cpu' or 'cuda', got '" + name + "'");
+}
+
+Handle::Handle(Model model, const std::vector<std::string>& algorithms, Backend backend, const std::string& dtype,
+               const std::string& output_convention, int threads)
+    : Handle(std::move(model), algorithms, backend == Backend::CUDA ? 0 : threads,
+             backend == Backend::CUDA ? "float64" : dtype, output_convention) {
+  backend_ = backend;
+  if (backend != Backend::CUDA) return;
+  if (dtype != "float64" && dtype != "float32")
+    throw std::invalid_argument("dtype: expected 'float64' or 'float32', got '" + dtype + "'");
+  if (threads < 0)
+    throw std::invalid_argument("threads: expected 0 (no engine) or a positive thread count, got " +
+                                std::to_string(threads));
+  dtype_ = dtype;
+  threads_ = threads;
+  cuda_.reset(new CudaEngine(model_, dtype));
+}
+
 Handle::Handle(Model model, const std::vector<std::string>& algorithms, int threads)
     : Handle(std::move(model), algorithms, threads, "float64") {}
 
@@ -168,7 +190,7 @@ bool Handle::has(const std::string& operation) const {
          std::find(operations_.begin(), operations_.end(), operation) != operations_.end();
 }
 
-void Handle::run(int op, const ops::OpCall& call) {
+void Handle::check(int op, const ops::OpCall& call) const {
   if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
     throw std::invalid_argument("run: unknown operation id " + std::to_string(op));
   const ops::OpEntry& e = ops::op_table()[op];
@@ -182,19 +204,56 @@ void Handle::run(int op, const ops::OpCall& call) {
                                 "spherical joints; use a handle with output_convention='pinocchio'");
   if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
   else ops::check_call<double>(model_, *e.spec, call);
-  if (ops::takes_names(*e.spec)) {  // frames and end effectors for the kernels, then the same call
+}
+
+void Handle::run(int op, const ops::OpCall& call) {
+  check(op, call);
+  const ops::OpSpec& spec = *ops::op_table()[op].spec;
+  if (ops::takes_names(spec)) {  // frames and end effectors for the kernels, then the same call
     std::vector<double> f64;
     std::vector<float> f32;
-    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, *e.spec, call, f32)
-                                                     : ops::resolve_names(model_, *e.spec, call, f64);
+    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, spec, call, f32)
+                                                     : ops::resolve_names(model_, spec, call, f64);
     return dispatch(op, resolved);
   }
   dispatch(op, call);
 }
 
-void Handle::dispatch(int op, const ops::OpCall& call) {
+void Handle::run_device(int op, const ops::OpCall& call) {
+  if (!cuda_)
+    throw std::invalid_argument("run_device: device arrays need a handle with backend='cuda' (this one is 'cpu')");
+  if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
+    throw std::invalid_argument("run: unknown operation id " + std::to_string(op));
+  const ops::OpSpec& spec = *ops::op_table()[op].spec;
+  if (cuda_->interpret()) {
+    check(op, call);  // "device memory" is host memory
+  } else {
+    // the values are checked on a host copy of the inputs
+    const size_t bytes = dtype_ == "float32" ? sizeof(float) : sizeof(double);
+    std::vector<std::vector<unsigned char>> host(spec.n_args);
+    ops::OpCall h = call;
+    for (int k = 0; k < spec.n_args; ++k) {
+      if (!call.in[k] || spec.args[k].kind == ops::kFrame) continue;
+      host[k].resize(bytes * ops::arg_values(spec.args[k], model_, call.n_ee) * (call.batched[k] ? call.B : 1));
+      cuda_->copy_to_host(host[k].data(), call.in[k], host[k].size());
+      h.in[k] = host[k].data();
+    }
+    check(op, h);
+  }
+  if (ops::takes_names(spec)) {
+    std::vector<double> f64;
+    std::vector<float> f32;
+    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, spec, call, f32)
+                                                     : ops::resolve_names(model_, spec, call, f64);
+    return dispatch(op, resolved, true);
+  }
+  dispatch(op, call, true);
+}
+
+void Handle::dispatch(int op, const ops::OpCall& call, bool device_arrays) {
   const ops::OpEntry& e = ops::op_table()[op];
   const bool no_bodies = model_.nb() == 0;
+  if (cuda_ && (!no_bodies || device_arrays)) return cuda_->run_op(op, call, device_arrays);
   if (no_bodies && !ops::takes_names(*e.spec)) {
     // no joints: no bodies and no mass. Outputs of the model's sizes are empty; the others (an energy, a
     // centre of mass) are a sum over no bodies, 0, or undefined without mass. (A frame on the world has

@@ -27,6 +27,11 @@
 // float32 handle: always), f_ext and the MuJoCo convention included; results
 // are bit-identical whatever the thread count. threads = 0 (the default): one
 // sample at a time on the calling thread.
+//
+// Backend::CUDA runs every registered operation on a GPU instead
+// (cuda/cuda_engine.hpp; RBDKIT_CUDA_INTERPRET=1: the kernels' source on the
+// CPU): the same checks, the same results, host arrays copied in and out, or
+// device arrays in place (run_device).
 #pragma once
 
 #include <Eigen/Core>
@@ -36,8 +41,14 @@
 
 #include "rbdkit/batch/dynamics.hpp"
 #include "rbdkit/batch/engine.hpp"
+#include "rbdkit/cuda/cuda_engine.hpp"
 
 namespace rbd {
+
+// where a handle computes: the CPU (serial loop or batch engine) or a CUDA device
+enum class Backend { CPU, CUDA };
+// "cpu" / "cuda" (std::invalid_argument naming the valid ones otherwise)
+Backend backend_from_name(const std::string& name);
 
 // one row of the algorithm table
 struct AlgorithmInfo {
@@ -74,7 +85,16 @@ class Handle {
   Handle(Model model, const std::vector<std::string>& algorithms, int threads, const std::string& dtype,
          const std::string& output_convention);
 
+  // a handle on a backend: Backend::CUDA needs a CUDA device or interpret mode
+  // (std::runtime_error naming what is missing otherwise)
+  Handle(Model model, const std::vector<std::string>& algorithms, Backend backend,
+         const std::string& dtype = "float64", const std::string& output_convention = "pinocchio",
+         int threads = 0);
+
   const Model& model() const { return model_; }
+  Backend backend() const { return backend_; }
+  // the CUDA engine of a Backend::CUDA handle (null otherwise)
+  CudaEngine* cuda() const { return cuda_.get(); }
   int threads() const { return threads_; }
   const std::string& dtype() const { return dtype_; }
   int output_convention() const { return convention_; }  // OutputConvention
@@ -94,6 +114,10 @@ class Handle {
   // A call's output_convention argument is the caller's (the bindings and
   // the typed methods default it to the handle's).
   void run(int op, const ops::OpCall& call);
+  // the same on device arrays (a Backend::CUDA handle): read and written in
+  // place, on the handle's stream (cuda()->set_stream). The values are checked
+  // as run() checks them, from a host copy of the inputs on a real device
+  void run_device(int op, const ops::OpCall& call);
   bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
 
   // ---- dynamics
@@ -166,7 +190,9 @@ class Handle {
 
  private:
   void require(const char* operation) const;  // throws unless has(operation)
-  void dispatch(int op, const ops::OpCall& call);  // run's checked call, names resolved: serial loop or engine
+  // run's checked call, names resolved: serial loop, engine or CUDA engine (device_arrays: run_device's)
+  void dispatch(int op, const ops::OpCall& call, bool device_arrays = false);
+  void check(int op, const ops::OpCall& call) const;  // the backend, the convention, the values
   void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
@@ -183,7 +209,9 @@ class Handle {
   WorkspaceCache ws_;  // linear until an O(n²) operation runs
   std::vector<double> op_scratch_;  // the serial loop's scratch
   std::mutex run_;  // one run() at a time (the workspace is shared)
-  std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64)
+  std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64), and on Backend::CUDA
+  Backend backend_ = Backend::CPU;
+  std::unique_ptr<CudaEngine> cuda_;  // Backend::CUDA
 };
 
 }  // namespace rbd

@@ -1,0 +1,132 @@
+"""µs per knot point on the CUDA backend, beside the CPU engine at the same B
+on the same machine (issue 14, scripts/gpu-check.sh).
+
+For iiwa, HyQ and Atlas, fixed and floating; ID, M, M⁻¹, FD, ∇ID, ∇FD, the
+rk4 step gradient and the Euler step Hessian; float32 and float64; B in
+{1, 16, 64, 256, 1024, 4096, 16384}:
+  resident   inputs already on the device (PyTorch or CuPy device arrays;
+             "-" when neither is installed), outputs made there
+  host       a call on NumPy arrays: copies in and out included
+  cpu        the CPU engine (rbdkit.Handle(backend="cpu"), all cores)
+
+    python3 bench/gpu.py [--quick] [--out table.md]
+
+In interpret mode (RBDKIT_CUDA_INTERPRET=1, no GPU) the same runs, slowly:
+a smoke test of the script, not a measurement.
+"""
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+import rbdkit  # noqa: E402
+
+ROBOTS = (("iiwa", False), ("iiwa", True), ("hyq", False), ("hyq", True), ("atlas", False), ("atlas", True))
+OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "forward_dynamics"),
+       ("∇ID", "inverse_dynamics_gradient"), ("∇FD", "forward_dynamics_gradient"),
+       ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
+BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
+
+
+def device_module():
+    """(name, to_device, synchronize) of PyTorch or CuPy on a GPU, or None"""
+    try:
+        import torch
+        if torch.cuda.is_available():
+            return "torch", (lambda a: torch.from_numpy(a).cuda()), torch.cuda.synchronize
+    except ImportError:
+        pass
+    try:
+        import cupy
+        if cupy.cuda.runtime.getDeviceCount() > 0:
+            return "cupy", cupy.asarray, cupy.cuda.runtime.deviceSynchronize
+    except Exception:  # noqa: BLE001  no CuPy, or no device for it
+        pass
+    return None
+
+
+def arguments(h, op, B, rng):
+    """the call's positional arguments and keywords on B samples (NumPy, the handle's dtype)"""
+    dt = h.dtype
+    q = np.stack([h.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)]).astype(dt)
+    qd = rng.uniform(-1, 1, (B, h.nv)).astype(dt)
+    u = rng.uniform(-1, 1, (B, h.nv)).astype(dt)
+    if op in ("crba", "minv"):
+        return (q,), {}
+    if op == "integrator_gradient":
+        return (q, qd, u), {"dt": 0.01, "integrator_type": "rk4"}
+    if op == "plant_step_hessian":
+        return (np.concatenate([q, qd], axis=1), u), {"dt": 0.01, "integrator_type": "euler"}
+    return (q, qd, u), {}
+
+
+def per_call(f, args, kwargs, sync, budget):
+    """seconds per call, best of repeats within `budget` seconds"""
+    f(*args, **kwargs)
+    sync()
+    best, spent, n = np.inf, 0.0, 1
+    while spent < budget:
+        t0 = time.perf_counter()
+        for _ in range(n):
+            f(*args, **kwargs)
+        sync()
+        dt = time.perf_counter() - t0
+        best, spent = min(best, dt / n), spent + dt
+        n = min(n * 2, 64)
+    return best
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="iiwa and floating HyQ, B in {1, 256, 4096}")
+    ap.add_argument("--out", help="also write the table (markdown) here")
+    ap.add_argument("--budget", type=float, default=0.2, help="seconds per measurement")
+    a = ap.parse_args()
+    robots = ROBOTS[:1] + ROBOTS[3:4] if a.quick else ROBOTS
+    batches = (1, 256, 4096) if a.quick else BATCHES
+    dev = device_module()
+    nosync = lambda: None  # noqa: E731
+    lines = []
+
+    def out(s=""):
+        print(s, flush=True)
+        lines.append(s)
+
+    gpu = None
+    for robot, floating in robots:
+        model = rbdkit.robots.load(robot, floating_base=floating)
+        for dtype in ("float32", "float64"):
+            cu = rbdkit.Handle(model, backend="cuda", dtype=dtype)
+            cpu = rbdkit.Handle(model, backend="cpu", dtype=dtype)
+            if gpu is None:
+                gpu = cu.device
+                out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
+                    f"(CPU engine: {cpu.threads} threads; device arrays: {dev[0] if dev else 'none'})")
+                out()
+                out("| robot | dtype | op | B | resident | host | cpu | cpu / resident |")
+                out("|---|---|---|---:|---:|---:|---:|---:|")
+            for label, op in OPS:
+                for B in batches:
+                    rng = np.random.default_rng(0)
+                    args, kw = arguments(cu, op, B, rng)
+                    host = per_call(getattr(cu, op), args, kw, nosync, a.budget) / B * 1e6
+                    cpu_t = per_call(getattr(cpu, op), args, kw, nosync, a.budget) / B * 1e6
+                    res = None
+                    if dev:
+                        dargs = tuple(dev[1](x) for x in args)
+                        res = per_call(getattr(cu, op), dargs, kw, dev[2], a.budget) / B * 1e6
+                    name = robot + ("_floating" if floating else "")
+                    out(f"| {name} | {dtype} | {label} | {B} | {'-' if res is None else f'{res:.3f}'} | "
+                        f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |")
+    if a.out:
+        with open(a.out, "w") as f:
+            f.write("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,78 @@
+// rbdkit/cuda/cuda_engine.hpp — the CUDA backend: every registered operation
+// (ops/registry.hpp) over a batch on a GPU, one thread per sample, float64 or
+// float32. Host only; the kernels are src/cuda/kernels.cuh.
+//
+//   rbd::CudaEngine e(model, "float64");            // the device, or interpret mode
+//   e.run_op(op, call);                             // host arrays: copied in and out
+//   e.run_op(op, call, /*device_arrays=*/true);     // device arrays, used in place
+//
+// Where it runs:
+//   - RBDKIT_CUDA_INTERPRET=1 (or `interpret` = true): the kernels' source on
+//     the CPU, blocks and threads serially (the same code nvcc compiles;
+//     "device memory" is host memory). No GPU needed: CI tests every
+//     operation this way against the CPU engine.
+//   - otherwise a CUDA device, if this build has the real kernels (nvcc was
+//     found: cuda_compiled()) and the machine has a device; without either, the
+//     constructor throws std::runtime_error naming what is missing.
+//
+// Calls (ops::OpCall) are the Handle's, already checked (ops::check_call)
+// and with names resolved (ops::resolve_names). Host arrays are copied into
+// device buffers that grow on the first call of a size and are reused after
+// (no device allocation per call); device arrays (device_arrays = true) are
+// read and written in place, the end effectors' list included. Launches go on
+// the engine's stream (set_stream: the caller's, as a cudaStream_t; default:
+// a stream of its own) and a call returns when they are done.
+// A sample whose kernel fails (a mass matrix that is not positive definite)
+// or whose outputs overflow makes the call throw, naming the samples: the
+// kernels write a status per sample, never a silent wrong number.
+// One call at a time per engine (calls from several threads serialise).
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "rbdkit/ops/table.hpp"
+#include "rbdkit/parsers/model.hpp"
+
+namespace rbd {
+
+class CudaEngine {
+ public:
+  // dtype "float64" or "float32"; interpret: run the kernels on the CPU
+  // (default: the environment variable RBDKIT_CUDA_INTERPRET=1)
+  CudaEngine(const Model& model, const std::string& dtype, bool interpret = interpret_requested());
+  ~CudaEngine();
+  CudaEngine(const CudaEngine&) = delete;
+  CudaEngine& operator=(const CudaEngine&) = delete;
+
+  // whether RBDKIT_CUDA_INTERPRET is set to 1 in the environment
+  static bool interpret_requested();
+  // whether this build compiled the real kernels (nvcc found at build time)
+  static bool cuda_compiled();
+  // the CUDA devices this process sees (0 without a driver, a device, or real kernels)
+  static int device_count();
+
+  bool interpret() const;
+  const std::string& dtype() const;
+  // "interpret (CPU)" or the device's name
+  std::string device_name() const;
+  // the stream launches go on (a cudaStream_t; null: the engine's own)
+  void set_stream(void* stream);
+  void* stream() const;
+  // device bytes the engine holds (work buffers, copies, the model)
+  unsigned long device_bytes() const;
+
+  // the registered operation `op` on call.B samples (arrays of the engine's
+  // dtype): host arrays, or device arrays when device_arrays
+  void run_op(int op, const ops::OpCall& call, bool device_arrays = false);
+  // bytes of device memory to host memory, on the engine's stream (returns when done)
+  void copy_to_host(void* dst, const void* device_src, size_t bytes);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rbd

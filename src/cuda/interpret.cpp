@@ -1,0 +1,37 @@
+// src/cuda/interpret.cpp — the interpret device (RBDKIT_CUDA_INTERPRET=1):
+// "device memory" is host memory and a launch runs the kernel's source
+// (kernels.cuh) under the emulated launch, blocks and threads serially.
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <stdexcept>
+
+#include "device.hpp"
+
+namespace rbd {
+namespace cuda {
+namespace {
+
+struct InterpretDevice : Device {
+  std::string name() const override { return "interpret (CPU)"; }
+  void* alloc(size_t bytes) override {
+    void* p = std::aligned_alloc(64, (bytes + 63) / 64 * 64 + 64);
+    if (!p) throw std::runtime_error("cuda (interpret): out of host memory for " + std::to_string(bytes) + " bytes");
+    return p;
+  }
+  void release(void* p) override { std::free(p); }
+  void to_device(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
+  void to_host(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
+  void launch(int op, const DeviceCall<double>& c, void* stream) override { interpret_routes<double>()[op](c, stream); }
+  void launch(int op, const DeviceCall<float>& c, void* stream) override { interpret_routes<float>()[op](c, stream); }
+  void synchronize(void*) override {}
+  void* create_stream() override { return nullptr; }
+  void destroy_stream(void*) override {}
+};
+
+}  // namespace
+
+std::unique_ptr<Device> make_interpret_device() { return std::make_unique<InterpretDevice>(); }
+
+}  // namespace cuda
+}  // namespace rbd

@@ -1,0 +1,19 @@
+// src/cuda/interpret_routes.hpp — the interpret launches of every registered
+// operation for one dtype, instantiated in src/cuda/interpret_<dtype>.cpp (a
+// file per dtype, so that a parallel build compiles them side by side)
+#pragma once
+
+#include "device.hpp"
+
+namespace rbd {
+namespace cuda {
+
+template <typename Op, typename T> void interpret_launch(const DeviceCall<T>& c, void*) { interpret_op<Op>(c); }
+
+template <typename T, typename... Op> const Launcher<T>* interpret_table(ops::OpList<Op...>) {
+  static const Launcher<T> table[] = {&interpret_launch<Op, T>...};
+  return table;
+}
+
+}  // namespace cuda
+}  // namespace rbd

@@ -1,0 +1,147 @@
+// The CUDA backend (include/rbdkit/cuda/cuda_engine.hpp) in interpret mode:
+// the kernels' source (src/cuda/kernels.cuh) under the emulated launch, so
+// that CI, which has no GPU, runs every registered operation on every test
+// model against the CPU: float64 to 1e-12 relative of the serial loop,
+// float32 within the engine's bounds per family; device arrays in place; a
+// failed sample named; no device and no interpret mode: a clear error.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "registry_helpers.hpp"
+#include "test_models.hpp"
+
+using rbd::Model;
+using rbd_test::max_rel_err;
+using rbd_test::ModelCase;
+using namespace rbd_test;
+
+namespace {
+
+// RBDKIT_TEST_CUDA_DEVICE=1 (scripts/gpu-check.sh): the same tests on the real device
+bool on_device() {
+  const char* v = std::getenv("RBDKIT_TEST_CUDA_DEVICE");
+  return v && std::string(v) == "1";
+}
+
+// a Backend::CUDA handle in interpret mode (RBDKIT_CUDA_INTERPRET=1 while it is built), or on the device
+std::unique_ptr<rbd::Handle> interpret_handle(const Model& m, const std::string& dtype) {
+  if (!on_device()) setenv("RBDKIT_CUDA_INTERPRET", "1", 1);
+  auto h = std::make_unique<rbd::Handle>(m, std::vector<std::string>{}, rbd::Backend::CUDA, dtype);
+  unsetenv("RBDKIT_CUDA_INTERPRET");
+  return h;
+}
+
+class CudaModels : public ::testing::TestWithParam<ModelCase> {};
+
+}  // namespace
+
+TEST_P(CudaModels, InterpretEqualsCpu) {
+  const ModelCase& mc = GetParam();
+  const Model m = Model::from_urdf_file(mc.path, mc.floating);
+  rbd::Handle serial(m);
+  const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
+  rbd::Handle &cu64 = *p64, &cu32 = *p32;
+  ASSERT_TRUE(cu64.cuda() && cu64.cuda()->interpret() != on_device());
+  if (!on_device()) EXPECT_EQ(cu64.cuda()->device_name(), "interpret (CPU)");
+
+  const long B = 7;
+  for (const ops::OpEntry& e : ops::op_table()) {
+    const ops::OpSpec& op = *e.spec;
+    SCOPED_TRACE(op.name);
+    if (op.model == ops::kNoMimic && m.has_mimic()) continue;
+    const Inputs in = make_inputs(m, op, B, 9, true);
+    if (op.failure == ops::kOscSingular && !six_dof_reach(m, in.ee)) {
+      EXPECT_THROW(run<double>(cu64, e.id, in), std::invalid_argument);
+      continue;
+    }
+    const long w = sample_width(m, op, in.call.n_ee);
+    // on the device, FMAs and the device's sin and cos round differently: the engine's bounds against
+    // the serial loop (M⁻¹ amplifies rounding by cond(M))
+    const double tol64 = !on_device() ? 1e-12 : float32_bound(op) > 1e-4 ? 1e-8 : 1e-11;
+    const std::vector<double> ref = run<double>(serial, e.id, in);
+    const std::vector<double> r64 = run<double>(cu64, e.id, in), r32 = run<float>(cu32, e.id, in);
+    // device arrays, in place (interpret mode: host memory is the device's)
+    const std::vector<double> dev = on_device() ? r64 : run<double>(cu64, e.id, in, ~0u, true);
+    ASSERT_EQ(r64.size(), ref.size());
+    for (long s = 0; s < B; ++s) {
+      EXPECT_LE(max_rel_err(sample_of(r64, w, s), sample_of(ref, w, s)), tol64) << "float64 sample " << s;
+      EXPECT_LE(max_rel_err(sample_of(dev, w, s), sample_of(ref, w, s)), tol64) << "device arrays, sample " << s;
+      EXPECT_LE(max_rel_err(sample_of(r32, w, s), sample_of(ref, w, s)), float32_bound(op)) << "float32 sample " << s;
+    }
+    // the first array unbatched (stride 0): every sample sees sample 0's values
+    Inputs bc = in;
+    bc.call.batched[0] = false;
+    const std::vector<double> rb = run<double>(cu64, e.id, bc), rs = run<double>(serial, e.id, bc);
+    EXPECT_LE(max_rel_err(rb, rs), tol64) << "broadcast";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, CudaModels, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
+
+// the samples whose kernel fails are named, with the CPU's reason
+TEST(Cuda, FailedSamplesAreNamed) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  const auto hp = interpret_handle(iiwa, "float64");
+  rbd::Handle& h = *hp;
+  const int id = ops::find_op("osc_inertia");
+  Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 6, 2, false);
+  for (int s : {3, 5})
+    for (int k = 0; k < iiwa.nq; ++k) in.arrays[0][s * iiwa.nq + k] = 0;  // stretched out: singular
+  std::string msg;
+  try {
+    run<double>(h, id, in);
+  } catch (const std::invalid_argument& e) {
+    msg = e.what();
+  }
+  EXPECT_EQ(msg.rfind("osc_inertia: J M⁻¹ Jᵀ of an end effector is singular at sample 3", 0), 0u) << msg;
+  EXPECT_NE(msg.find("[backend='cuda': 2 of 6 samples, samples 3, 5]"), std::string::npos) << msg;
+}
+
+// values are checked as on the CPU (one pass, the argument and the sample named)
+TEST(Cuda, ChecksAreTheCpus) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  const auto hp = interpret_handle(iiwa, "float64");
+  rbd::Handle& h = *hp;
+  const int id = ops::find_op("crba");
+  Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 4, 1, false);
+  in.arrays[0][2 * iiwa.nq + 1] = NAN;
+  for (bool device : {false, true}) {
+    if (device && on_device()) continue;  // host memory is not the device's
+    std::string msg;
+    try {
+      run<double>(h, id, in, ~0u, device);
+    } catch (const std::invalid_argument& e) {
+      msg = e.what();
+    }
+    EXPECT_NE(msg.find("q[2]"), std::string::npos) << msg;
+  }
+}
+
+// without interpret mode the backend needs a device (and real kernels): a clear error where there is none
+TEST(Cuda, NoDeviceIsAClearError) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  unsetenv("RBDKIT_CUDA_INTERPRET");
+  if (rbd::CudaEngine::cuda_compiled() && rbd::CudaEngine::device_count() > 0) {
+    rbd::Handle h(iiwa, {}, rbd::Backend::CUDA);
+    EXPECT_FALSE(h.cuda()->interpret());
+    return;
+  }
+  std::string msg;
+  try {
+    rbd::Handle h(iiwa, {}, rbd::Backend::CUDA);
+  } catch (const std::runtime_error& e) {
+    msg = e.what();
+  }
+  EXPECT_NE(msg.find(rbd::CudaEngine::cuda_compiled() ? "no CUDA device" : "no CUDA kernels"), std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("RBDKIT_CUDA_INTERPRET=1"), std::string::npos) << msg;
+  // a CPU handle refuses device arrays
+  rbd::Handle cpu(iiwa);
+  const int id = ops::find_op("crba");
+  const Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 2, 1, false);
+  EXPECT_THROW(run<double>(cpu, id, in, ~0u, true), std::invalid_argument);
+}

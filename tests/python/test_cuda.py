@@ -1,0 +1,138 @@
+"""rbdkit.Handle(backend="cuda") in interpret mode (RBDKIT_CUDA_INTERPRET=1):
+the CUDA kernels' source run on the CPU, against the CPU handle, with host
+arrays and with device arrays (a NumPy stand-in exposing
+__cuda_array_interface__, whose "device" memory is host memory in interpret
+mode). Without a device and without interpret mode: a clear error. On a GPU
+machine scripts/gpu-check.sh runs the same comparison on the device."""
+
+import numpy as np
+import pytest
+
+import rbdkit
+
+OPS = ("inverse_dynamics", "crba", "minv", "aba", "forward_dynamics", "inverse_dynamics_gradient",
+       "forward_dynamics_gradient", "integrator_gradient", "plant_step_hessian", "com", "kinetic_energy")
+
+
+class StandIn:
+    """a device array in interpret mode: a NumPy array behind __cuda_array_interface__"""
+
+    def __init__(self, a):
+        self.a = np.ascontiguousarray(a)
+
+    @property
+    def __cuda_array_interface__(self):
+        return {"shape": self.a.shape, "typestr": self.a.dtype.str, "data": (self.a.ctypes.data, False),
+                "version": 3, "strides": None}
+
+    @classmethod
+    def _rbdkit_empty(cls, shape, dtype, like):
+        return cls(np.empty(shape, dtype=dtype))
+
+
+@pytest.fixture
+def interpret(monkeypatch):
+    monkeypatch.setenv("RBDKIT_CUDA_INTERPRET", "1")
+
+
+def states(h, B, seed=0):
+    rng = np.random.default_rng(seed)
+    rbd = h.rbd
+    q = np.stack([rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
+    qd = rng.uniform(-1, 1, (B, h.nv))
+    tau = rng.uniform(-1, 1, (B, h.nv))
+    return q, qd, tau
+
+
+def call(h, op, q, qd, tau, wrap=lambda a: a):
+    if op in ("crba", "minv", "com"):
+        return getattr(h, op)(wrap(q))
+    if op == "kinetic_energy":
+        return h.kinetic_energy(wrap(q), wrap(qd))
+    if op == "integrator_gradient":
+        return h.integrator_gradient(wrap(q), wrap(qd), wrap(tau), dt=0.01)
+    if op == "plant_step_hessian":
+        return h.plant_step_hessian(wrap(np.concatenate([q, qd], axis=1)), wrap(tau), dt=0.01)
+    return getattr(h, op)(wrap(q), wrap(qd), wrap(tau))
+
+
+def as_list(r):
+    return list(r) if isinstance(r, tuple) else [r]
+
+
+@pytest.mark.parametrize("robot,floating", [("iiwa", False), ("hyq", True), ("atlas", True)])
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_interpret_equals_cpu(interpret, robot, floating, dtype):
+    model = rbdkit.robots.load(robot, floating_base=floating)
+    cpu = rbdkit.Handle(model, dtype=dtype, threads=1)
+    cu = rbdkit.Handle(model, backend="cuda", dtype=dtype)
+    assert cu.device == "interpret (CPU)" and cpu.device is None
+    q, qd, tau = states(cu, 5)
+    # against the CPU engine, whose vectorised sin and cos are within an ulp of libm's (the kernels use
+    # libm's in interpret mode): M⁻¹ amplifies that by cond(M) (tests/cpp/test_cuda.cpp holds the
+    # kernels to 1e-12 of the serial loop, which uses libm's as well)
+    amplified = ("minv", "aba", "forward_dynamics", "forward_dynamics_gradient", "integrator_gradient",
+                 "plant_step_hessian")
+    for op in OPS:
+        if not cu.has(op):
+            continue
+        want = as_list(call(cpu, op, q.astype(dtype), qd.astype(dtype), tau.astype(dtype)))
+        got = as_list(call(cu, op, q, qd, tau))
+        dev = as_list(call(cu, op, q.astype(dtype), qd.astype(dtype), tau.astype(dtype), StandIn))
+        assert len(got) == len(want) == len(dev), op
+        for w, g, d in zip(want, got, dev):
+            assert g.dtype == np.dtype(dtype) and isinstance(d, StandIn) and d.a.dtype == np.dtype(dtype), op
+            scale = max(1.0, float(np.max(np.abs(w))))
+            # float32: the CPU engine and the CUDA kernels both round in float32, differently
+            if dtype == "float64":
+                bound = 1e-8 if op in amplified else 1e-11
+            else:
+                bound = 5e-2 if op == "plant_step_hessian" else 2e-3
+            assert np.max(np.abs(g - w)) <= bound * scale, op
+            assert np.max(np.abs(d.a - w)) <= bound * scale, op
+
+
+def test_errors_name_the_samples(interpret):
+    h = rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda")
+    q = np.zeros((6, 7))
+    q[[0, 1, 2, 4], :] = 0.3  # samples 3 and 5 stretched out: J M⁻¹ Jᵀ is singular
+    with pytest.raises(ValueError, match=r"at sample 3.*2 of 6 samples, samples 3, 5"):
+        h.osc_inertia(q)
+    bad = np.zeros((4, 7))
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"q\[2\]"):
+        h.crba(bad)
+    with pytest.raises(ValueError, match=r"q\[2\]"):
+        h.crba(StandIn(bad))
+
+
+def test_device_arrays_are_checked(interpret):
+    h = rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda")
+    q = np.zeros((3, 7))
+    with pytest.raises(TypeError, match="float64"):
+        h.crba(StandIn(q.astype(np.float32)))
+    with pytest.raises(TypeError, match="host arrays or device arrays, not both"):
+        h.inverse_dynamics(StandIn(q), q, q)
+    with pytest.raises(ValueError, match="expected shape"):
+        h.crba(StandIn(np.zeros((3, 6))))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        class Strided(StandIn):
+            @property
+            def __cuda_array_interface__(self):
+                d = StandIn.__cuda_array_interface__.fget(self)
+                d["strides"] = (8, 24)
+                return d
+        h.crba(Strided(q))
+
+
+def test_no_device_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv("RBDKIT_CUDA_INTERPRET", raising=False)
+    compiled, devices = rbdkit.cuda_available()
+    if compiled and devices > 0:
+        assert rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda").device not in (None, "interpret (CPU)")
+        return
+    with pytest.raises(RuntimeError, match="RBDKIT_CUDA_INTERPRET=1") as e:
+        rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda")
+    assert ("no CUDA device" if compiled else "no CUDA kernels") in str(e.value)
+    with pytest.raises(ValueError, match="backend: expected 'cpu' or 'cuda'"):
+        rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="gpu")
