@@ -36,7 +36,9 @@ step "C++ CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 build/gpu/test
   --gtest_filter='*Cuda*'
 step "C++ kernel check (cuda/kernel_check.cu)" build/gpu/cuda_kernel_check robots
 
-# ---- compute-sanitizer on a small batch (one model, every operation)
+# ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global memory,
+# launch errors); racecheck (shared-memory races: none possible in the one-sample-per-thread
+# kernels, there for the cooperative kernels that will share memory within a block)
 if command -v compute-sanitizer >/dev/null; then
   for tool in memcheck racecheck; do
     step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 compute-sanitizer --tool "$tool" \

@@ -171,10 +171,13 @@ class Handle:
 
     def set_stream(self, stream):
         """the CUDA stream a backend='cuda' handle launches on: a cudaStream_t
-        as an int, an object with a `cuda_stream` or `ptr` attribute (PyTorch,
-        CuPy), or None / 0 for the handle's own stream"""
+        as an int (0: the default stream), an object with a `cuda_stream` or
+        `ptr` attribute (PyTorch, CuPy), or None for the handle's own stream
+        (the default; it waits for the default stream, where PyTorch and CuPy
+        work unless told otherwise)"""
         if stream is None:
-            stream = 0
+            self._core.set_stream(None)
+            return
         for attr in ("cuda_stream", "ptr"):
             if not isinstance(stream, (int, np.integer)) and hasattr(stream, attr):
                 stream = getattr(stream, attr)

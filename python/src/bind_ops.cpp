@@ -21,6 +21,7 @@
 #include <numpy/arrayobject.h>
 
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -336,12 +337,13 @@ bool is_array(const ops::ArgSpec& a) { return a.kind == ops::kArray || a.kind ==
 
 // ---------------------------------------------------------------- device arrays (a backend='cuda' handle)
 
-// an array in device memory, described by its __cuda_array_interface__ (CuPy, PyTorch, JAX, Numba; in
+// an array in device memory, described by its __cuda_array_interface__ (CuPy, PyTorch, Numba; in
 // interpret mode a NumPy stand-in whose "device" memory is host memory)
 struct DeviceArray {
   void* data = nullptr;
   int nd = 0;
   npy_intp dims[ops::kMaxRank + 1] = {};
+  unsigned long stream = 0;  // the interface's stream (v3): its producer's work must finish first; 0: none
 };
 
 bool has_device_interface(PyObject* o) {
@@ -392,6 +394,8 @@ bool as_device_array(PyObject* o, const char* name, int type, int max_nd, Device
     if (!contiguous) return bad(PyExc_ValueError, "expected a C-contiguous device array");
   }
   out.data = PyLong_AsVoidPtr(PyTuple_GET_ITEM(data, 0));
+  PyObject* stream = PyDict_GetItemString(cai, "stream");
+  if (stream && stream != Py_None) out.stream = PyLong_AsUnsignedLong(stream);
   Py_DECREF(cai);
   return !PyErr_Occurred();
 }
@@ -468,6 +472,8 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   bool device = false;
   PyObject* device_proto = nullptr;
   int first_array = -1;
+  unsigned long producers[ops::kMaxArgs] = {};  // the device inputs' streams
+  int n_producers = 0;
   for (int k = 0; k < op.n_args; ++k) {
     const ops::ArgSpec& a = op.args[k];
     if (!is_array(a)) continue;
@@ -492,6 +498,7 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
     if (device) {
       if (!device_proto) device_proto = o;
       if (!as_device_array(o, a.name, type, a.shape.rank + 1, dev)) return nullptr;
+      if (dev.stream) producers[n_producers++] = dev.stream;
     } else {
       arr = as_array(o, a.name, type, refs, &wide);
       if (!arr) return nullptr;
@@ -606,8 +613,12 @@ PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObjec
   std::string msg;
   PyThreadState* ts = c.B > 1 ? PyEval_SaveThread() : nullptr;
   try {
-    if (device) self->handle->h->run_device(self->op, c);
-    else self->handle->h->run(self->op, c);
+    if (device) {
+      for (int j = 0; j < n_producers; ++j) self->handle->h->cuda()->wait_for_stream(producers[j]);
+      self->handle->h->run_device(self->op, c);
+    } else {
+      self->handle->h->run(self->op, c);
+    }
   } catch (const std::invalid_argument& e) {
     err_type = PyExc_ValueError, msg = e.what();
   } catch (const std::bad_alloc&) {
@@ -767,11 +778,13 @@ void bind_ops(nb::module_& m) {
         if (!h.h->cuda()) return nb::none();
         return nb::str(h.h->cuda()->device_name().c_str());
       })
-      // the stream a backend='cuda' handle launches on (a cudaStream_t as an int; 0: its own)
-      .def("set_stream", [](OpHandle& h, uintptr_t stream) {
+      // the stream a backend='cuda' handle launches on: a cudaStream_t as an int (0: the default
+      // stream), or None: a stream of its own
+      .def("set_stream", [](OpHandle& h, std::optional<uintptr_t> stream) {
         if (!h.h->cuda()) throw nb::value_error("stream: a stream needs a handle with backend='cuda'");
-        h.h->cuda()->set_stream(reinterpret_cast<void*>(stream));
-      }, "stream"_a)
+        if (stream) h.h->cuda()->set_stream(reinterpret_cast<void*>(*stream));
+        else h.h->cuda()->use_own_stream();
+      }, "stream"_a.none())
       .def_prop_ro("dtype", [](const OpHandle& h) { return h.h->dtype(); })
       .def("has", [](const OpHandle& h, const std::string& name) { return h.h->has(name); }, "name"_a)
       // the registered operations this handle runs, in registry order

@@ -19,7 +19,7 @@ namespace rbd {
 
 namespace {
 
-constexpr unsigned long kMaxWorkBytes = 1ul << 30;  // per launch: samples x (workspace + scratch)
+constexpr unsigned long kMaxWorkBytes = 1ul << 30;  // default, per launch: samples x (workspace + scratch)
 
 unsigned long round16(unsigned long n) { return (n + 15ul) & ~15ul; }
 
@@ -34,7 +34,7 @@ struct Buffer {
   void* reserve(size_t need) {
     if (need > bytes) {
       if (p) dev->release(p);
-      p = nullptr;
+      p = nullptr, bytes = 0;  // (if alloc throws, the next call allocates again)
       p = dev->alloc(need);
       bytes = need;
     }
@@ -52,6 +52,7 @@ struct CudaEngine::Impl {
   void* own_stream = nullptr;
   void* stream = nullptr;
   Buffer bodies, work, status, io;
+  unsigned long max_work_bytes = kMaxWorkBytes;
   std::mutex call;
   std::vector<int> status_host;
 
@@ -62,9 +63,14 @@ struct CudaEngine::Impl {
     for (Buffer* b : {&bodies, &work, &status, &io}) b->dev = dev.get();
     own_stream = dev->create_stream();
     stream = own_stream;
-    // the model's bodies in the engine's scalar, read only on the device
-    if (d == "float64") upload_bodies(model.bodies_as<double>());
-    else upload_bodies(model.bodies_as<float>());
+    try {  // the model's bodies in the engine's scalar, uploaded once
+      if (d == "float64") upload_bodies(model.bodies_as<double>());
+      else upload_bodies(model.bodies_as<float>());
+    } catch (...) {
+      dev->destroy_stream(own_stream);
+      own_stream = nullptr;
+      throw;
+    }
   }
   ~Impl() {
     if (own_stream) dev->destroy_stream(own_stream);
@@ -135,7 +141,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   }
 
   // launches over chunks of samples whose work buffer fits kMaxWorkBytes
-  const long chunk = std::max(1L, std::min<long>(B, static_cast<long>(kMaxWorkBytes / dc.work_bytes)));
+  const long chunk = std::max(1L, std::min<long>(B, static_cast<long>(max_work_bytes / dc.work_bytes)));
   work.reserve(dc.work_bytes * chunk);
   status.reserve(sizeof(int) * B);
   dc.work = static_cast<unsigned char*>(work.p);
@@ -225,14 +231,31 @@ int CudaEngine::device_count() { return cuda::cuda_device_count(); }
 bool CudaEngine::interpret() const { return impl_->interpret; }
 const std::string& CudaEngine::dtype() const { return impl_->dtype; }
 std::string CudaEngine::device_name() const { return impl_->dev->name(); }
-void CudaEngine::set_stream(void* s) { impl_->stream = s ? s : impl_->own_stream; }
+void CudaEngine::set_stream(void* s) {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->stream = s;
+}
+void CudaEngine::use_own_stream() {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->stream = impl_->own_stream;
+}
 void* CudaEngine::stream() const { return impl_->stream; }
+void CudaEngine::wait_for_stream(unsigned long producer) {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->dev->activate();
+  impl_->dev->wait_for(producer, impl_->stream);
+}
+void CudaEngine::set_max_work_bytes(unsigned long bytes) {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->max_work_bytes = bytes ? bytes : kMaxWorkBytes;
+}
 unsigned long CudaEngine::device_bytes() const {
   return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes;
 }
 
 void CudaEngine::copy_to_host(void* dst, const void* src, size_t bytes) {
   std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->dev->activate();
   impl_->dev->to_host(dst, src, bytes, impl_->stream);
   impl_->dev->synchronize(impl_->stream);
 }
@@ -244,6 +267,7 @@ void CudaEngine::run_op(int op, const ops::OpCall& call, bool device_arrays) {
     throw std::invalid_argument(std::string(ops::op_table()[op].spec->name) +
                                 ": B: expected a positive batch size, got " + std::to_string(call.B));
   std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->dev->activate();
   if (impl_->dtype == "float32") impl_->run<float>(op, call, device_arrays);
   else impl_->run<double>(op, call, device_arrays);
 }

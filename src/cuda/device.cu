@@ -19,6 +19,7 @@ void check(cudaError_t e, const char* what) {
 
 struct CudaDevice : Device {
   std::string device;
+  int id = 0;  // the device current when the engine was made: every call runs there
   CudaDevice() {
     int n = 0;
     const cudaError_t e = cudaGetDeviceCount(&n);
@@ -26,10 +27,12 @@ struct CudaDevice : Device {
       throw std::runtime_error(std::string("backend='cuda': no CUDA device is available (") +
                                (e != cudaSuccess ? cudaGetErrorString(e) : "the driver reports 0 devices") +
                                "); set RBDKIT_CUDA_INTERPRET=1 to run the kernels on the CPU");
+    check(cudaGetDevice(&id), "cudaGetDevice");
     cudaDeviceProp p;
-    check(cudaGetDeviceProperties(&p, 0), "cudaGetDeviceProperties");
+    check(cudaGetDeviceProperties(&p, id), "cudaGetDeviceProperties");
     device = p.name;
   }
+  void activate() override { check(cudaSetDevice(id), "cudaSetDevice"); }
   std::string name() const override { return device; }
   void* alloc(size_t bytes) override {
     void* p = nullptr;
@@ -43,16 +46,32 @@ struct CudaDevice : Device {
   void to_host(void* dst, const void* src, size_t bytes, void* s) override {
     check(cudaMemcpyAsync(dst, src, bytes, cudaMemcpyDeviceToHost, static_cast<cudaStream_t>(s)), "copy to host");
   }
-  void launch(int op, const DeviceCall<double>& c, void* s) override { device_routes<double>()[op](c, s); }
-  void launch(int op, const DeviceCall<float>& c, void* s) override { device_routes<float>()[op](c, s); }
-  void synchronize(void* s) override {
-    check(cudaGetLastError(), "kernel launch");
-    check(cudaStreamSynchronize(static_cast<cudaStream_t>(s)), "kernel");
+  void launch(int op, const DeviceCall<double>& c, void* s) override {
+    device_routes<double>()[op](c, s);
+    check(cudaPeekAtLastError(), "kernel launch");
   }
+  void launch(int op, const DeviceCall<float>& c, void* s) override {
+    device_routes<float>()[op](c, s);
+    check(cudaPeekAtLastError(), "kernel launch");
+  }
+  void synchronize(void* s) override { check(cudaStreamSynchronize(static_cast<cudaStream_t>(s)), "kernel"); }
+  // a blocking stream: it waits for the legacy default stream, where PyTorch and CuPy work by default
   void* create_stream() override {
     cudaStream_t s;
-    check(cudaStreamCreateWithFlags(&s, cudaStreamNonBlocking), "cudaStreamCreate");
+    check(cudaStreamCreate(&s), "cudaStreamCreate");
     return s;
+  }
+  void wait_for(unsigned long producer, void* s) override {
+    const cudaStream_t p = producer == 1   ? cudaStreamLegacy
+                           : producer == 2 ? cudaStreamPerThread
+                                           : reinterpret_cast<cudaStream_t>(producer);
+    if (p == static_cast<cudaStream_t>(s)) return;
+    cudaEvent_t e;
+    check(cudaEventCreateWithFlags(&e, cudaEventDisableTiming), "cudaEventCreate");
+    const cudaError_t r1 = cudaEventRecord(e, p), r2 = cudaStreamWaitEvent(static_cast<cudaStream_t>(s), e, 0);
+    cudaEventDestroy(e);
+    check(r1, "cudaEventRecord on the arrays' stream");
+    check(r2, "cudaStreamWaitEvent");
   }
   void destroy_stream(void* s) override { cudaStreamDestroy(static_cast<cudaStream_t>(s)); }
 };

@@ -27,6 +27,12 @@ struct Device {
   virtual void synchronize(void* stream) = 0;  // throws std::runtime_error on a launch's failure
   virtual void* create_stream() = 0;
   virtual void destroy_stream(void* stream) = 0;
+  // work on `stream` waits for what was queued on `producer` so far (a CUDA
+  // stream handle as __cuda_array_interface__ gives it: 1 the legacy default
+  // stream, 2 the per-thread default stream, else a cudaStream_t)
+  virtual void wait_for(unsigned long producer, void* stream) = 0;
+  // makes the engine's device the calling thread's current one (before any call)
+  virtual void activate() = 0;
 };
 
 std::unique_ptr<Device> make_interpret_device();

@@ -13,8 +13,8 @@
 // Layout (docs/cuda.md): inputs and outputs are the caller's row-major
 // (B x shape) arrays (an unbatched input has stride 0); each sample owns a
 // slice of one global work buffer, its workspace (model/workspace.hpp,
-// carved per sample) then its scratch; the model's bodies are read through
-// const __restrict__ pointers (the read-only data path). A sample whose
+// carved per sample) then its scratch; the model's bodies are in global
+// memory, uploaded once per handle. A sample whose
 // kernel fails, or whose outputs are not finite, writes its status; the
 // host names those samples.
 #pragma once

@@ -208,15 +208,18 @@ void Handle::check(int op, const ops::OpCall& call) const {
 
 void Handle::run(int op, const ops::OpCall& call) {
   check(op, call);
+  resolve_and_dispatch(op, call, false);
+}
+
+void Handle::resolve_and_dispatch(int op, const ops::OpCall& call, bool device_arrays) {
   const ops::OpSpec& spec = *ops::op_table()[op].spec;
-  if (ops::takes_names(spec)) {  // frames and end effectors for the kernels, then the same call
-    std::vector<double> f64;
-    std::vector<float> f32;
-    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, spec, call, f32)
-                                                     : ops::resolve_names(model_, spec, call, f64);
-    return dispatch(op, resolved);
-  }
-  dispatch(op, call);
+  if (!ops::takes_names(spec)) return dispatch(op, call, device_arrays);
+  // frames and end effectors for the kernels, then the same call
+  std::vector<double> f64;
+  std::vector<float> f32;
+  const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, spec, call, f32)
+                                                   : ops::resolve_names(model_, spec, call, f64);
+  dispatch(op, resolved, device_arrays);
 }
 
 void Handle::run_device(int op, const ops::OpCall& call) {
@@ -240,14 +243,7 @@ void Handle::run_device(int op, const ops::OpCall& call) {
     }
     check(op, h);
   }
-  if (ops::takes_names(spec)) {
-    std::vector<double> f64;
-    std::vector<float> f32;
-    const ops::OpCall resolved = dtype_ == "float32" ? ops::resolve_names(model_, spec, call, f32)
-                                                     : ops::resolve_names(model_, spec, call, f64);
-    return dispatch(op, resolved, true);
-  }
-  dispatch(op, call, true);
+  resolve_and_dispatch(op, call, true);
 }
 
 void Handle::dispatch(int op, const ops::OpCall& call, bool device_arrays) {

@@ -82,6 +82,24 @@ TEST_P(CudaModels, InterpretEqualsCpu) {
 
 INSTANTIATE_TEST_SUITE_P(Models, CudaModels, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
 
+// a batch larger than one launch's work buffer: several launches, the same results
+TEST(Cuda, ChunkedLaunchesEqualOne) {
+  const Model hyq = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true);
+  const auto hp = interpret_handle(hyq, "float64");
+  rbd::Handle serial(hyq);
+  for (const char* name : {"forward_dynamics_gradient", "integrator_gradient", "crba"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    Inputs in = make_inputs(hyq, *ops::op_table()[id].spec, 10, 4, true);
+    in.call.batched[1] = false;  // one unbatched input, broadcast over the chunks
+    const std::vector<double> ref = run<double>(serial, id, in);
+    hp->cuda()->set_max_work_bytes(300000);  // at most 300 kB of work buffer per launch: a few samples
+    const std::vector<double> got = run<double>(*hp, id, in);
+    hp->cuda()->set_max_work_bytes(0);
+    EXPECT_LE(max_rel_err(got, ref), on_device() ? 1e-8 : 1e-12);
+  }
+}
+
 // the samples whose kernel fails are named, with the CPU's reason
 TEST(Cuda, FailedSamplesAreNamed) {
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);

@@ -18,10 +18,13 @@
 // Calls (ops::OpCall) are the Handle's, already checked (ops::check_call)
 // and with names resolved (ops::resolve_names). Host arrays are copied into
 // device buffers that grow on the first call of a size and are reused after
-// (no device allocation per call); device arrays (device_arrays = true) are
-// read and written in place, the end effectors' list included. Launches go on
-// the engine's stream (set_stream: the caller's, as a cudaStream_t; default:
-// a stream of its own) and a call returns when they are done.
+// (no device allocation per call); device arrays (device_arrays = true: the
+// arrays and outputs, not the end effectors' list or a frame's placement,
+// which are host memory) are read and written in place. Launches go on the
+// engine's stream (set_stream: the caller's cudaStream_t, 0 the default
+// stream; use_own_stream: a blocking stream of its own, the default) on the
+// device that was current when the engine was made, and a call returns when
+// they are done.
 // A sample whose kernel fails (a mass matrix that is not positive definite)
 // or whose outputs overflow makes the call throw, naming the samples: the
 // kernels write a status per sample, never a silent wrong number.
@@ -57,9 +60,17 @@ class CudaEngine {
   const std::string& dtype() const;
   // "interpret (CPU)" or the device's name
   std::string device_name() const;
-  // the stream launches go on (a cudaStream_t; null: the engine's own)
+  // the stream launches go on: a cudaStream_t (null: the default stream), or the engine's own
   void set_stream(void* stream);
+  void use_own_stream();
   void* stream() const;
+  // launches from now on wait for the work queued so far on `producer` (a
+  // __cuda_array_interface__ stream: 1 legacy default, 2 per-thread default,
+  // else a cudaStream_t): the ordering a device array's producer asks for
+  void wait_for_stream(unsigned long producer);
+  // samples per launch are bounded so that their work buffers take at most
+  // `bytes` (default 1 GiB; 0: the default); larger batches take several launches
+  void set_max_work_bytes(unsigned long bytes);
   // device bytes the engine holds (work buffers, copies, the model)
   unsigned long device_bytes() const;
 

@@ -193,6 +193,7 @@ class Handle {
   // run's checked call, names resolved: serial loop, engine or CUDA engine (device_arrays: run_device's)
   void dispatch(int op, const ops::OpCall& call, bool device_arrays = false);
   void check(int op, const ops::OpCall& call) const;  // the backend, the convention, the values
+  void resolve_and_dispatch(int op, const ops::OpCall& call, bool device_arrays);  // names resolved, then dispatch
   void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
 
