@@ -14,9 +14,9 @@ JOBS=${JOBS:-$(nproc)}
 # suite (the CUDA backend in interpret mode included), find_package consumer.
 # The kernels as PTX for one architecture here (RBDKIT_TEST_CUDA_ARCH, default
 # 90-virtual: the driver compiles it to machine code when it loads it): the
-# kernels of every operation take nvcc about 6 minutes per dtype and
-# architecture on 2 cores with machine code, half that as PTX; a plain cmake
-# build compiles CMake's default, 80;90 (machine code and PTX)
+# kernels of every operation take nvcc about 5 minutes per dtype as PTX on 2
+# cores (ptxas adds about a minute per architecture); a plain cmake build
+# compiles CMake's default, 80;90 (machine code and PTX)
 export PATH="$PATH:/usr/local/cuda/bin"
 if ! command -v nvcc >/dev/null; then
   if [[ "${CI:-}" == "true" ]]; then echo "test: nvcc not found; CI must compile the CUDA kernels" >&2; exit 1; fi
