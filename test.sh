@@ -41,7 +41,7 @@ cmake --build build/sanitize -j "$JOBS"
 (cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E find_package_consumer)
 
 # ---- fuzzing (libFuzzer, clang, ASan/UBSan): the URDF reader and ModelBuilder,
-# saved regression inputs first, then up to 30 s per target (scripts/fuzz.sh)
+# saved regression inputs first, then up to 20 s per target (scripts/fuzz.sh)
 JOBS="$JOBS" scripts/fuzz.sh
 
 # ---- second-order derivatives against Pinocchio's C++ library (not in its

@@ -9,7 +9,7 @@
 # Exits non-zero on a crash, a leak or a broken invariant, printing the
 # reproducer's path; replay one with  build/fuzz/fuzz_<target> <file>.
 #   scripts/fuzz.sh [--runs N] [--time SECONDS] [--target urdf|builder] [-- libFuzzer flags]
-# Default (./test.sh): per target 100000 runs or 30 seconds, whichever comes first.
+# Default (./test.sh): per target 100000 runs or 20 seconds, whichever comes first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -30,7 +30,7 @@ done
 # -max_total_time=0 mean none to libFuzzer)
 # (and a fixed seed: ./test.sh's short run is the same every time)
 seed=()
-if [[ -z "$runs" && -z "$secs" ]]; then runs=100000 secs=30 seed=(-seed=1); fi
+if [[ -z "$runs" && -z "$secs" ]]; then runs=100000 secs=20 seed=(-seed=1); fi
 runs=${runs:--1}
 secs=${secs:-0}
 CXX=${FUZZ_CXX:-clang++}

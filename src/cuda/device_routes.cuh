@@ -12,7 +12,8 @@ namespace cuda {
 
 template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, void* stream) {
   const LaunchShape shape = launch_shape(c.B);
-  op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, 0, static_cast<cudaStream_t>(stream)>>>(c);
+  op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, 0, static_cast<cudaStream_t>(stream)>>>(
+      c, c.model.body);
 }
 
 template <typename T, typename... Op> const Launcher<T>* device_table(ops::OpList<Op...>) {

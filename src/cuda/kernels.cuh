@@ -13,10 +13,13 @@
 // Layout (docs/cuda.md): inputs and outputs are the caller's row-major
 // (B x shape) arrays (an unbatched input has stride 0); each sample owns a
 // slice of one global work buffer, its workspace (model/workspace.hpp,
-// carved per sample) then its scratch; the model's bodies are in global
-// memory, uploaded once per handle. A sample whose
-// kernel fails, or whose outputs are not finite, writes its status; the
-// host names those samples.
+// carved per sample) then its scratch; the model's bodies are uploaded once
+// per handle and reach the kernel as a `const __restrict__` parameter: read
+// only for the kernel's lifetime, so nvcc loads them through the read-only
+// data cache (ld.global.nc), and every thread of a warp reads the same body
+// at the same time (one broadcast load). A sample whose kernel fails, or
+// whose outputs are not finite, writes its status; the host names those
+// samples.
 #pragma once
 
 #include "rbdkit/ops/registry.hpp"
@@ -43,7 +46,7 @@ template <typename T> struct DeviceCall {
   long out_values[ops::kMaxOutputs];
   const int* ee;                   // kEndEffectors: the bodies (device memory)
   int n_ee;
-  ModelView<T> model;              // body: device memory, read only
+  ModelView<T> model;              // body: device memory, read only (op_kernel's `bodies`)
   WorkspaceLayout layout;
   unsigned long work_bytes;        // per sample: the workspace, then the scratch (16-byte multiple)
   unsigned long ws_bytes;          // the workspace part
@@ -58,12 +61,13 @@ template <typename T> RBD_HD bool all_finite(const T* x, long n) {
   return acc == acc;
 }
 
-// sample s of Op: its arguments, workspace and scratch, the kernel, its status
-template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c, long s) {
+// sample s of Op on model m (c.model, its bodies as the kernel reads them):
+// its arguments, workspace and scratch, the kernel, its status
+template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
   constexpr int n_out = Op::spec.n_out;
   constexpr bool finite_outputs = Op::spec.outputs == ops::kFiniteOutputs;
   unsigned char* work = c.work + static_cast<unsigned long>(s) * c.work_bytes;
-  Workspace<T> w = carve_workspace<T>(work, c.model.nb, c.model.nv, c.layout);
+  Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
   ops::OpArgs<T> a;
   for (int k = 0; k < ops::kMaxArgs; ++k) {
     a.in[k] = c.in[k] ? c.in[k] + s * c.in_stride[k] : nullptr;
@@ -75,7 +79,7 @@ template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c,
   a.ee = c.ee;
   a.n_ee = c.n_ee;
   int status = kSampleOk;
-  if (!Op::run(c.model, w, a)) {
+  if (!Op::run(m, w, a)) {
     status = kSampleFailed;
   } else if (finite_outputs) {
     for (int o = n_out - 1; o >= 0; --o)
@@ -85,13 +89,18 @@ template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c,
 }
 
 // the samples one thread owns: first, first + stride, ... below B
-template <typename Op, typename T> RBD_HD void op_samples(const DeviceCall<T>& c, long first, long stride) {
-  for (long s = first; s < c.B; s += stride) op_sample<Op>(c, s);
+template <typename Op, typename T>
+RBD_HD void op_samples(const DeviceCall<T>& c, const ModelView<T>& m, long first, long stride) {
+  for (long s = first; s < c.B; s += stride) op_sample<Op>(c, m, s);
 }
 
 #if defined(__CUDACC__)
-template <typename Op, typename T> __global__ void op_kernel(DeviceCall<T> c) {
-  op_samples<Op>(c, static_cast<long>(blockIdx.x) * blockDim.x + threadIdx.x,
+// `bodies` is c.model.body, passed apart so that it can be declared read only
+// and unaliased for the kernel (a qualifier on a struct member is not honoured)
+template <typename Op, typename T>
+__global__ void op_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
+  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
+  op_samples<Op>(c, m, static_cast<long>(blockIdx.x) * blockDim.x + threadIdx.x,
                  static_cast<long>(gridDim.x) * blockDim.x);
 }
 #endif
@@ -123,7 +132,7 @@ inline LaunchShape launch_shape(long B) {
 template <typename Op, typename T> void interpret_op(const DeviceCall<T>& c) {
   const LaunchShape shape = launch_shape(c.B);
   const long stride = shape.blocks * shape.threads;
-  emulate_launch(shape, [&](long b, int t) { op_samples<Op>(c, b * shape.threads + t, stride); });
+  emulate_launch(shape, [&](long b, int t) { op_samples<Op>(c, c.model, b * shape.threads + t, stride); });
 }
 
 template <typename T> using Launcher = void (*)(const DeviceCall<T>&, void* stream);

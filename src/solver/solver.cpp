@@ -224,7 +224,7 @@ struct CostEval {
 
 class Evaluator {
  public:
-  Evaluator(const Model& m, Handle& h, const TrajectoryProblem& p, const Setup& s) : m_(m), h_(h), p_(p), s_(s) {}
+  Evaluator(Handle& h, const TrajectoryProblem& p, const Setup& s) : h_(h), p_(p), s_(s) {}
 
   void eval(const RowMat& X, const RowMat& U, bool derivatives, CostEval& c) {
     const int N = s_.N, nq = s_.nq, nv = s_.nv, nx = s_.nx, ndx = s_.ndx;
@@ -321,7 +321,6 @@ class Evaluator {
   }
 
  private:
-  const Model& m_;
   Handle& h_;
   const TrajectoryProblem& p_;
   const Setup& s_;
@@ -611,7 +610,7 @@ SolverResult solve_trajectory(const Model& model, PlantSteps& steps, Handle& h, 
   const bool closed_loop = X_init.size() > 0;
 
   SolverResult r;
-  Evaluator ev(model, h, p, s);
+  Evaluator ev(h, p, s);
   Plant pl{model, model.view(), steps, p.x0, VectorXd(ndx)};
   RowMat X(N + 1, nx), Xn(N + 1, nx), Un(N, nv);
   Policy pol{std::vector<MatrixXd>(N, MatrixXd::Zero(nv, ndx)), RowMat::Zero(N, nv)};

@@ -83,8 +83,9 @@ void check_against_nested_duals(const Model& m, int conv) {
     double scale = 1;
     for (double h : H) scale = std::max(scale, std::fabs(h));
     double err = 0, err1 = 0;
-    for (auto [j, k] : pairs) {
-      // z = ε₁ e_j + ε₂ e_k
+    for (const auto& jk : pairs) {
+      // z = ε₁ e_j + ε₂ e_k (plain ints: a lambda may not capture a structured binding before C++20)
+      const int j = jk.first, k = jk.second;
       auto seed = [&](int c) { return D2(D1(0.0, c == j ? 1.0 : 0.0), D1(c == k ? 1.0 : 0.0)); };
       for (int c = 0; c < nv; ++c) dq[c] = seed(c);
       for (int c = 0; c < nq; ++c) qd[c] = D2(D1(q[c]));

@@ -512,7 +512,8 @@ struct Integrator {
       "x⁺ = [q⁺; qd⁺] (nq + nv,) after one step of length dt with constant controls u and body-local external "
       "forces f_ext.",
       8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
-      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed};
+      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed, kAnyModel,
+      kFiniteOutputs, 0, kCalled};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return integrator_step(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6], a.out[0],
                            a.out[0] + m.nq, a.scratch, a.choice[7]);
@@ -525,7 +526,8 @@ struct IntegratorGradient {
       "[A | B] = ∂x⁺/∂(x, u) (2·nv, 3·nv) in the tangent space: rows [δq⁺; δqd⁺], columns [δq | δqd | δu] "
       "(x⁺ (nq + nv,) is the first output).",
       8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
-      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed};
+      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed, kAnyModel, kFiniteOutputs,
+      0, kCalled};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     S* x = a.out[0] ? a.out[0] : a.scratch + integrator_gradient_scratch_values(m.nq, m.nv);
     return integrator_gradient(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6], x,
@@ -537,7 +539,8 @@ struct PlantStep {
   static constexpr OpSpec spec = {
       "plant_step", "integrator", "integrators", "x⁺ (nq + nv,) for x = [q; qd] (nq + nv,).",
       7, {array("x", shape(kNx), kConfiguration), RBD_STEP_ARGS},
-      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed};
+      1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed, kAnyModel,
+      kFiniteOutputs, 0, kCalled};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return integrator_step(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
                            a.out[0], a.out[0] + m.nq, a.scratch, a.choice[6]);
@@ -549,7 +552,8 @@ struct PlantStepGradient {
       "plant_step_gradient", "integrator_gradient", "integrators",
       "[A | B] (2·nv, 3·nv) of plant_step, tangent space (x⁺ is the first output).",
       7, {array("x", shape(kNx), kConfiguration), RBD_STEP_ARGS},
-      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed};
+      2, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}}, 0b10, 0, kFull, kScratchIntegratorGrad, kStepFailed, kAnyModel, kFiniteOutputs,
+      0, kCalled};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     S* x = a.out[0] ? a.out[0] : a.scratch + integrator_gradient_scratch_values(m.nq, m.nv);
     return integrator_gradient(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
