@@ -413,58 +413,75 @@ PyObject* device_empty(PyObject* proto, PyObject* shape, int type) {
   return PyObject_CallFunction(fn, "OOs", proto, shape, type == NPY_FLOAT ? "float32" : "float64");
 }
 
-PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObject* kwnames) {
-  OpFn* self = reinterpret_cast<OpFn*>(self_);
-  const ops::OpSpec& op = *self->spec;
-  const rbd::Model& m = self->handle->h->model();
-  const int type = self->handle->npy_type;
-
-  // ---- the arguments by position and keyword
-  PyObject* slot[ops::kMaxArgs] = {};
+// a call's arguments into their slots (position or keyword) and its
+// parameters (not its arrays) parsed into c; false with an exception set.
+// names: the spec's argument names as Python strings (interned)
+bool bind_arguments(const OpHandle& h, const ops::OpSpec& op, PyObject* const* names, PyObject* const* args,
+                    size_t nargsf, PyObject* kwnames, PyObject** slot, ops::OpCall& c, std::vector<int>& ee) {
+  const rbd::Model& m = h.h->model();
   const Py_ssize_t npos = PyVectorcall_NARGS(nargsf);
-  if (npos > op.n_args)
-    return fail(PyExc_TypeError, std::string(op.name) + "() takes at most " + std::to_string(op.n_args) +
-                                     " arguments (" + std::to_string(npos) + " given)");
+  if (npos > op.n_args) {
+    fail(PyExc_TypeError, std::string(op.name) + "() takes at most " + std::to_string(op.n_args) + " arguments (" +
+                              std::to_string(npos) + " given)");
+    return false;
+  }
   for (Py_ssize_t k = 0; k < npos; ++k) slot[k] = args[k];
   if (kwnames) {
     const Py_ssize_t nkw = PyTuple_GET_SIZE(kwnames);
     for (Py_ssize_t j = 0; j < nkw; ++j) {
       PyObject* key = PyTuple_GET_ITEM(kwnames, j);
       int k = 0;
-      while (k < op.n_args && self->names[k] != key) ++k;
+      while (k < op.n_args && names[k] != key) ++k;
       if (k == op.n_args) {
         k = 0;
-        while (k < op.n_args && PyUnicode_Compare(self->names[k], key) != 0) ++k;
+        while (k < op.n_args && PyUnicode_Compare(names[k], key) != 0) ++k;
       }
       if (k == op.n_args) {
         PyObject* r = PyObject_Repr(key);
         std::string s = text_of(r);
         Py_XDECREF(r);
-        return fail(PyExc_TypeError, std::string(op.name) + "() got an unexpected keyword argument " + s);
+        fail(PyExc_TypeError, std::string(op.name) + "() got an unexpected keyword argument " + s);
+        return false;
       }
-      if (slot[k])
-        return fail(PyExc_TypeError, std::string(op.name) + "() got multiple values for argument '" +
-                                         op.args[k].name + "'");
+      if (slot[k]) {
+        fail(PyExc_TypeError, std::string(op.name) + "() got multiple values for argument '" + op.args[k].name + "'");
+        return false;
+      }
       slot[k] = args[npos + j];
     }
   }
-
-  // ---- parameters (cheap checks first), then the arrays: dtype, shape, batch axis
-  ops::OpCall c;
-  std::vector<int> ee;  // the end effectors' bodies (a kEndEffectors argument)
+  // parameters (cheap checks first; the arrays are the caller's)
   for (int k = 0; k < op.n_args; ++k) {
     const ops::ArgSpec& a = op.args[k];
     if (is_array(a)) continue;
     if (!slot[k] && a.kind == ops::kEndEffectors) {
-      if (!parse_param(m, a, Py_None, k, c, 0, ee)) return nullptr;
+      if (!parse_param(m, a, Py_None, k, c, 0, ee)) return false;
     } else if (!slot[k]) {
-      if (std::isnan(a.value))
-        return fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
-      default_param(a, k, c, self->handle->h->output_convention());
-    } else if (!parse_param(m, a, slot[k], k, c, type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput, ee)) {
-      return nullptr;
+      if (std::isnan(a.value)) {
+        fail(PyExc_TypeError, std::string(op.name) + "() missing required argument '" + a.name + "'");
+        return false;
+      }
+      default_param(a, k, c, h.h->output_convention());
+    } else if (!parse_param(m, a, slot[k], k, c, h.npy_type == NPY_FLOAT ? rbd::kMaxInputF32 : rbd::kMaxInput, ee)) {
+      return false;
     }
   }
+  return true;
+}
+
+PyObject* op_call(PyObject* self_, PyObject* const* args, size_t nargsf, PyObject* kwnames) {
+  OpFn* self = reinterpret_cast<OpFn*>(self_);
+  const ops::OpSpec& op = *self->spec;
+  const rbd::Model& m = self->handle->h->model();
+  const int type = self->handle->npy_type;
+
+  // ---- the arguments by position and keyword, the parameters parsed
+  PyObject* slot[ops::kMaxArgs] = {};
+  ops::OpCall c;
+  std::vector<int> ee;  // the end effectors' bodies (a kEndEffectors argument)
+  if (!bind_arguments(*self->handle, op, self->names, args, nargsf, kwnames, slot, c, ee)) return nullptr;
+
+  // ---- the arrays: dtype, shape, batch axis
   Refs refs;
   long B = -1;
   int source = -1;
@@ -795,6 +812,57 @@ void bind_ops(nb::module_& m) {
                if (h.h->has_op(e.id)) out.push_back(e.spec->name);
              return out;
            })
+      // the address of the C++ rbd::Handle (the XLA FFI call's `handle` attribute: rbdkit.jax)
+      .def_prop_ro("address", [](const OpHandle& h) { return reinterpret_cast<uintptr_t>(h.h.get()); })
+      // a call of `name` laid out for a framework that passes the arrays itself (rbdkit.jax): the
+      // arguments bound and the parameters parsed as a call of the operation does (same errors);
+      // returns (op id, [(k, array argument, per-sample shape)], reals, choices, end-effector bodies,
+      // [(o, per-sample output shape)] of rbdkit.Handle's results, or of the outputs of mask `outputs`)
+      .def("plan", [](const OpHandle& h, const std::string& name, nb::tuple args, nb::dict kwargs, int outputs) {
+        const int id = ops::find_op(name);
+        if (id < 0 || !h.h->has_op(id)) throw nb::value_error((name + ": not an operation of this handle").c_str());
+        const ops::OpSpec& op = *ops::op_table()[id].spec;
+        const rbd::Model& m = h.h->model();
+        std::vector<PyObject*> av;
+        for (nb::handle a : args) av.push_back(a.ptr());
+        nb::list keys;
+        for (auto [k, v] : kwargs) keys.append(k), av.push_back(v.ptr());
+        nb::tuple kwnames = nb::tuple(keys);
+        nb::object names[ops::kMaxArgs];
+        PyObject* name_ptrs[ops::kMaxArgs] = {};
+        for (int k = 0; k < op.n_args; ++k) names[k] = nb::str(op.args[k].name), name_ptrs[k] = names[k].ptr();
+        PyObject* slot[ops::kMaxArgs] = {};
+        ops::OpCall c;
+        std::vector<int> ee;
+        if (!bind_arguments(h, op, name_ptrs, av.data(), args.size(), keys.size() ? kwnames.ptr() : nullptr, slot, c,
+                            ee))
+          throw nb::python_error();
+        auto shape_of = [&](const ops::Shape& sh) {
+          nb::list d;
+          for (int j = 0; j < sh.rank; ++j) d.append(ops::extent(sh.d[j], m.nq, m.nv, m.nb(), c.n_ee));
+          return nb::tuple(d);
+        };
+        nb::list arrays, reals, choices, outs;
+        for (int k = 0; k < op.n_args; ++k) {
+          reals.append(c.real[k]);
+          choices.append(c.choice[k]);
+          const ops::ArgSpec& a = op.args[k];
+          if (!is_array(a)) continue;
+          PyObject* o = slot[k];
+          if (!o) {
+            if (a.kind == ops::kArray)
+              throw nb::type_error((std::string(op.name) + "() missing required argument '" + a.name + "'").c_str());
+            continue;
+          }
+          if (a.kind == ops::kOptionalArray && o == Py_None) continue;
+          arrays.append(nb::make_tuple(k, nb::borrow(o), shape_of(a.shape)));
+        }
+        const unsigned returns =
+            outputs >= 0 ? static_cast<unsigned>(outputs) : (op.handle_returns ? op.handle_returns : op.returns);
+        for (int o = 0; o < op.n_out; ++o)
+          if (returns >> o & 1u) outs.append(nb::make_tuple(o, shape_of(op.out[o].shape)));
+        return nb::make_tuple(id, arrays, reals, choices, nb::cast(ee), outs);
+      }, "name"_a, "args"_a, "kwargs"_a, "outputs"_a = -1)
       // the callable of a registered operation; handle_results: rbdkit.Handle's results, else rbdkit.RBD's
       .def("op", [](nb::handle self, const std::string& name, bool handle_results) {
         OpHandle& h = nb::cast<OpHandle&>(self);

@@ -33,6 +33,7 @@ void bind_solver(nb::module_& m);  // bind_solver.cpp
 void bind_engine(nb::module_& m);  // bind_engine.cpp
 void bind_builder(nb::module_& m);  // bind_builder.cpp
 void bind_ops(nb::module_& m);  // bind_ops.cpp
+void bind_jax(nb::module_& m);  // bind_jax.cpp: the XLA FFI handler of rbdkit.jax
 
 
 namespace {
@@ -161,4 +162,5 @@ NB_MODULE(_core, m) {
   bind_engine(m);
   bind_builder(m);
   bind_ops(m);
+  bind_jax(m);
 }

@@ -1,0 +1,468 @@
+"""rbdkit.jax: the operations of rbdkit.Handle as JAX functions, under jit,
+vmap and automatic differentiation, computed by rbdkit's C++ batch engine
+through an XLA FFI custom call (no host callback, no copy).
+
+    import rbdkit, rbdkit.jax
+    h = rbdkit.jax.Handle(rbdkit.robots.load("iiwa"))
+    tau = jax.jit(h.inverse_dynamics)(q, qd, qdd)           # q (..., nq), qd, qdd (..., nv)
+    g = jax.grad(lambda q: h.forward_dynamics(q, qd, u).sum())(q)   # rbdkit's analytical gradient
+
+Methods are named, ordered and checked as rbdkit.Handle's (one C++ layout of
+each call, OpHandle.plan), and accept any leading batch shape: arrays are
+broadcast against each other on their leading axes, and every sample is one
+knot point of the engine. Parameters (gravity, dt, integrator_type, ...) are
+Python values, fixed at trace time; arrays may be traced.
+
+Derivatives. The operations below have a `jax.custom_jvp` rule built on
+rbdkit's analytical derivatives, not on tracing or finite differences; JAX
+transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
+
+    inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient), ∂τ/∂qdd = M (crba)
+    forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one call)
+    integrator, plant_step  [A | B] = ∂x⁺/∂(x, u) (integrator_gradient / plant_step_gradient), every scheme
+
+Every other operation computes values only; differentiating through one
+raises an error that names it (f_ext is not differentiable yet either).
+
+Several devices. Every sample is independent, so a batch sharded over a
+mesh is computed shard by shard where it lives under jax.shard_map (the
+call's operands are the local shards; values and gradients equal the
+unsharded call's):
+
+    fd = jax.shard_map(h.forward_dynamics, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"))
+
+Under plain jit with sharded inputs the results are the same, but XLA
+gathers the batch onto each device first (the call is not yet registered as
+batch-partitionable).
+
+Floating bases and spherical joints (quaternion coordinates). rbdkit's
+derivatives live in the tangent space: δq is a velocity-like vector of nv
+values, q' = q ⊕ δq (rbdkit.RBD.integrate). JAX differentiates with respect
+to the nq coordinates. The two are related by E(q) = ∂(q ⊕ δ)/∂δ at δ = 0
+(nq x nv): a coordinate tangent dq maps to the tangent-space δ = E⁺ dq (E⁺ =
+(EᵀE)⁻¹Eᵀ, the pseudo-inverse), and a tangent-space output change δ to the
+coordinates as E δ. For a free joint [p; x y z w] with its twist in the body
+frame, E = diag(R, ½ Q(q)) with R the body's rotation and Q(q) the 4 x 3
+matrix of q ⊗ (δ/2, 0); for a spherical joint, ½ Q(q). So the gradient JAX
+returns for q (a cotangent on the coordinates) is E⁺ᵀ g = E (EᵀE)⁻¹ g for
+the tangent-space gradient g: it has no component along q's quaternion (a
+change of its norm, which the model ignores), and Eᵀ of it is g again. With
+unit quaternions, EᵀE = diag(I, ¼ I), so the quaternion block of the
+coordinate gradient is 2 Q(q) g_ω: the tangent gradient is recovered as
+g = Eᵀ (JAX's gradient), `Handle.tangent_gradient` below.
+"""
+
+import numpy as np
+
+try:
+    import jax
+    import jax.numpy as jnp
+except ImportError as e:  # an optional dependency
+    raise ImportError("rbdkit.jax needs JAX: pip install 'jax[cpu]' (or a CUDA build of jax), then import "
+                      "rbdkit.jax again") from e
+
+from . import _core
+from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
+
+_TARGET = "rbdkit_op"
+_SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
+_registered = False
+
+
+def _register():
+    """register the FFI handler with XLA once per process"""
+    global _registered
+    if _registered:
+        return
+    handlers = _core.jax_ffi_handlers()
+    if handlers is None:
+        raise ImportError("rbdkit.jax: this rbdkit build has no XLA FFI handler (it was built without JAX "
+                          "installed): pip install 'jax[cpu]', then reinstall rbdkit")
+    for platform, capsule in handlers.items():
+        jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
+    _registered = True
+
+
+def _vary_like(outs, refs):
+    """outs, varying over the mesh axes any of refs varies over (inside shard_map: the FFI call does
+    not say so itself, and a derivative rule's primal and tangent types must agree)"""
+    vma = frozenset().union(*[_varying(r) for r in refs])
+    if not vma:
+        return list(outs)
+    return [jax.lax.pcast(o, tuple(sorted(vma - _varying(o))), to="varying") if vma - _varying(o) else o
+            for o in outs]
+
+
+def _varying(x):
+    """the mesh axes x varies over inside shard_map (the attribute's name depends on JAX's version)"""
+    t = jax.typeof(x)
+    if hasattr(t, "vma"):
+        return frozenset(t.vma)
+    mat = getattr(t, "manual_axis_type", None)
+    return frozenset(getattr(mat, "varying", ()) or ())
+
+
+def _check_x64(dtype):
+    if dtype == np.float64 and not jax.config.jax_enable_x64:
+        raise ValueError("dtype: a float64 handle needs JAX's 64-bit mode (jax.config.update('jax_enable_x64', "
+                         "True) before creating arrays), or use dtype='float32'")
+
+
+# the operations with a derivative rule, and the algorithms their rule calls
+_DERIVATIVE_ALGORITHMS = {
+    "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
+    "forward_dynamics": ("forward_dynamics_gradient",),
+    "aba": ("forward_dynamics_gradient",),
+    "integrator": ("integrator_gradient",),
+    "plant_step": ("integrator_gradient",),
+}
+
+
+class Handle:
+    """A robot's operations as JAX functions (module doc). Attributes: model,
+    numpy (the rbdkit.Handle that runs the calls), dtype, nq, nv, nb."""
+
+    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
+        _register()
+        if algorithms is not None:
+            if isinstance(algorithms, str):
+                algorithms = [algorithms]
+            extra = [a for alg in list(algorithms) if isinstance(alg, str) and alg in ALGORITHMS
+                     for op in ALGORITHMS[alg][0] for a in _DERIVATIVE_ALGORITHMS.get(op, ())]
+            algorithms = list(algorithms) + [a for a in extra if a not in algorithms]
+        self.numpy = _NumpyHandle(model, algorithms, "cpu", dtype, threads, output_convention)
+        _check_x64(self.numpy.dtype)
+        self.model = self.numpy.model
+        self.dtype = self.numpy.dtype
+        self.nq, self.nv, self.nb = self.model.nq, self.model.nv, self.model.nb
+        self.output_convention = self.numpy.output_convention
+        self._core = self.numpy._core
+        self._address = np.int64(self._core.address)
+        self._quats = _quaternion_blocks(self.model)
+
+    # ---- what the handle has
+    def available_operations(self):
+        return self.numpy.available_operations()
+
+    def has(self, name):
+        return self.numpy.has(name)
+
+    # ---- one call of an operation: its values, no derivative rule
+    def _values(self, op, args, kwargs, outputs=-1):
+        """the results of `op` (rbdkit.Handle's; `outputs`: a mask of the operation's outputs instead)"""
+        _check_x64(self.dtype)
+        op_id, arrays, reals, choices, ee, outs = self._core.plan(op, tuple(args), dict(kwargs), outputs)
+        xs = []
+        for k, a, shape in arrays:
+            x = jnp.asarray(a)
+            name = _signature(op)[k][0]
+            if not (jnp.issubdtype(x.dtype, jnp.floating) or jnp.issubdtype(x.dtype, jnp.integer)):
+                raise TypeError(f"{name}: expected a real array, got dtype {x.dtype}")
+            x = x.astype(self.dtype)
+            n = len(shape)
+            if x.ndim < n or tuple(x.shape[x.ndim - n:]) != tuple(shape):
+                raise ValueError(f"{name}: expected shape (..., {', '.join(map(str, shape))}) (any leading batch "
+                                 f"axes), got {tuple(x.shape)}")
+            xs.append(x)
+        batch = jnp.broadcast_shapes(*[x.shape[:x.ndim - len(s)] for x, (_, _, s) in zip(xs, arrays)]) if xs else ()
+        xs = [jnp.broadcast_to(x, batch + tuple(s)) for x, (_, _, s) in zip(xs, arrays)]
+        results = [jax.ShapeDtypeStruct(batch + tuple(s), self.dtype) for _, s in outs]
+        call = jax.ffi.ffi_call(_TARGET, results, vmap_method="broadcast_all")
+        out = call(*xs, handle=self._address, op=np.int64(op_id),
+                   slots=np.array([k for k, _, _ in arrays], np.int64), outputs=np.array([o for o, _ in outs], np.int64),
+                   reals=np.array(reals, np.float64), choices=np.array(choices, np.int64), ee=np.array(ee, np.int64))
+        out = _vary_like(out, xs)
+        return out[0] if len(out) == 1 else tuple(out)
+
+    def _call(self, op, args, kwargs):
+        rule = _RULES.get(op)
+        if rule is None:
+            return _values_only(self, op, args, kwargs)
+        return rule(self, op, args, kwargs)
+
+    # ---- the coordinates and the tangent space (module doc)
+    def to_tangent(self, q, dq):
+        """E⁺(q) dq: a change dq (..., nq) of the coordinates at q as a tangent-space vector (..., nv)"""
+        return _to_tangent(self, q, dq)
+
+    def from_tangent(self, q, dv):
+        """E(q) dv: a tangent-space vector dv (..., nv) at q as a change of the coordinates (..., nq)"""
+        return _from_tangent(self, q, dv)
+
+    def tangent_gradient(self, q, grad_q):
+        """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from JAX's gradient with respect to the
+        coordinates q (..., nq)"""
+        return _from_tangent_transpose(self, q, grad_q)
+
+    def __repr__(self):
+        return f"<rbdkit.jax.Handle of {self.model!r}: dtype={self.dtype.name}>"
+
+
+def _operation_method(op):
+    ref = getattr(_NumpyHandle, op)
+
+    def method(self, *args, **kwargs):
+        if not self.numpy.has(op):
+            alg = OPERATION_ALGORITHM[op]
+            raise ValueError(f"{op}: this handle was not built with it; add '{alg}' to algorithms")
+        return self._call(op, args, kwargs)
+
+    method.__name__ = method.__qualname__ = op
+    method.__signature__ = getattr(ref, "__signature__", None)
+    method.__doc__ = ref.__doc__
+    return method
+
+
+for _op in OPERATION_ALGORITHM:
+    setattr(Handle, _op, _operation_method(_op))
+del _op
+
+
+# ---------------------------------------------------------------- a call's arrays
+# The arrays of a call are the differentiable inputs of its custom_jvp
+# function, by position; the rest of the call (its parameters) is closed over.
+
+def _signature(op):
+    """[(argument, kind, default)] of a registered operation"""
+    return _SIGNATURES[op]
+
+
+def _bind(h, op, args, kwargs):
+    """the call as keywords, and the names of its array arguments present (argument order)"""
+    sig = [a[0] for a in _signature(op)]
+    if len(args) > len(sig):
+        raise TypeError(f"{op}() takes at most {len(sig)} arguments ({len(args)} given)")
+    kw = dict(zip(sig, args))
+    for name, v in kwargs.items():
+        if name in kw:
+            raise TypeError(f"{op}() got multiple values for argument '{name}'")
+        kw[name] = v
+    _, arrays, _, _, _, _ = h._core.plan(op, (), kw)
+    return kw, [sig[k] for k, _, _ in arrays]
+
+
+def _with(kw, names, arrays):
+    kw = dict(kw)
+    kw.update(zip(names, arrays))
+    return kw
+
+
+def _values_only(h, op, args, kwargs):
+    """an operation without a derivative rule: its values; differentiating it raises"""
+    kw, names = _bind(h, op, args, kwargs)
+
+    @jax.custom_jvp
+    def f(*arrays):
+        return h._values(op, (), _with(kw, names, arrays))
+
+    def no_derivative(primals, tangents):
+        raise NotImplementedError(f"rbdkit.jax: {op} computes values only (it has no derivative rule); the "
+                                  f"differentiable operations are {', '.join(sorted(_RULES))}")
+
+    f.defjvp(no_derivative, symbolic_zeros=True)
+    return f(*[kw[n] for n in names])
+
+
+# ---------------------------------------------------------------- the coordinates' tangent maps
+
+def _quaternion_blocks(model):
+    """[(kind, q_index, v_index)] of the joints whose coordinates are not their tangent space:
+    free joints ("free": position then quaternion x y z w) and spherical ones ("ball")"""
+    blocks = []
+    for j in model.joints:
+        if j["type"] == "free":
+            blocks.append(("free", j["q_index"], j["v_index"]))
+        elif j["type"] == "spherical":
+            blocks.append(("ball", j["q_index"], j["v_index"]))
+    return blocks
+
+
+def _coordinate_index(h):
+    """for each tangent index of a one-coordinate joint, its coordinate: (v indices, q indices)"""
+    qi, vi = [], []
+    for j in h.model.joints:
+        if j["type"] not in ("free", "spherical") and j["nv"] == 1:
+            qi.append(j["q_index"])
+            vi.append(j["v_index"])
+    return np.array(vi, int), np.array(qi, int)
+
+
+def _rotation(quat):
+    """R (..., 3, 3) of unit quaternions (..., 4) in x y z w order"""
+    x, y, z, w = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    return jnp.stack([
+        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        jnp.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        jnp.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def _half_q(quat):
+    """½ Q(q) (..., 4, 3): ∂(q ⊗ (δ/2, 1))/∂δ for q = (v, w) in x y z w order: [w I + [v]x; -vᵀ] / 2"""
+    x, y, z, w = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    rows = [jnp.stack([w, -z, y], -1), jnp.stack([z, w, -x], -1), jnp.stack([-y, x, w], -1),
+            jnp.stack([-x, -y, -z], -1)]
+    return 0.5 * jnp.stack(rows, -2)
+
+
+def _assemble(pieces, n, batch, dtype):
+    """the vector (..., n) whose entries `idx` are `values` (..., len(idx)) for each (idx, values) of
+    pieces: a concatenation and a fixed permutation (a gather, which JAX can transpose; entries no
+    piece names are 0)"""
+    idx = [i for ix, _ in pieces for i in ix]
+    missing = [i for i in range(n) if i not in set(idx)]
+    vals = [jnp.broadcast_to(v, batch + (len(ix),)) for ix, v in pieces]
+    if missing:
+        vals.append(jnp.zeros(batch + (len(missing),), dtype))
+        idx += missing
+    if not vals:
+        return jnp.zeros(batch + (n,), dtype)
+    return jnp.take(jnp.concatenate(vals, -1), np.argsort(np.array(idx)), axis=-1)
+
+
+def _tangent_map(h, q, x, kind):
+    """the linear maps of the coordinates at q (module doc), applied to x over leading axes:
+    "to_tangent" E⁺ x (x: nq -> nv), "from_tangent" E x (nv -> nq), "transpose" Eᵀ x (nq -> nv)"""
+    q, x = jnp.asarray(q), jnp.asarray(x)
+    batch = jnp.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+    dtype = jnp.result_type(q, x)
+    to_q = kind == "from_tangent"
+    vi, qi = _coordinate_index(h)
+    pieces = [(list(qi if to_q else vi), x[..., vi if to_q else qi])] if len(vi) else []
+    T = lambda A, y: jnp.einsum("...ji,...j->...i", A, y)  # Aᵀ y
+    N = lambda A, y: jnp.einsum("...ij,...j->...i", A, y)  # A y
+    rot_scale = {"to_tangent": 4.0, "from_tangent": 1.0, "transpose": 1.0}[kind]
+    for joint, iq, iv in h._quats:
+        qq = iq + 3 if joint == "free" else iq  # the quaternion's first coordinate
+        Q = _half_q(q[..., qq:qq + 4])
+        if joint == "free":  # the position: E = R, E⁺ = Eᵀ = Rᵀ
+            R = _rotation(q[..., qq:qq + 4])
+            if to_q:
+                pieces.append((list(range(iq, iq + 3)), N(R, x[..., iv:iv + 3])))
+            else:
+                pieces.append((list(range(iv, iv + 3)), T(R, x[..., iq:iq + 3])))
+        ivr = iv + 3 if joint == "free" else iv  # the rotation's first tangent index
+        if to_q:
+            pieces.append((list(range(qq, qq + 4)), N(Q, x[..., ivr:ivr + 3])))
+        else:  # E⁺ = (QᵀQ/4)⁻¹ Qᵀ/2 = 4 (Q/2)ᵀ for a unit quaternion
+            pieces.append((list(range(ivr, ivr + 3)), rot_scale * T(Q, x[..., qq:qq + 4])))
+    return _assemble(pieces, h.nq if to_q else h.nv, batch, dtype)
+
+
+def _to_tangent(h, q, dq):
+    """E⁺ dq (module doc)"""
+    return _tangent_map(h, q, dq, "to_tangent")
+
+
+def _from_tangent(h, q, dv):
+    """E dv (module doc)"""
+    return _tangent_map(h, q, dv, "from_tangent")
+
+
+def _from_tangent_transpose(h, q, g):
+    """Eᵀ g: a coordinate cotangent g (..., nq) as a tangent-space one (..., nv)"""
+    return _tangent_map(h, q, g, "transpose")
+
+
+# ---------------------------------------------------------------- derivative rules (custom_jvp)
+
+def _mv(A, x):
+    """A @ x over leading batch axes: A (..., m, n), x (..., n)"""
+    return jnp.einsum("...ij,...j->...i", A, x)
+
+
+def _zero(t):
+    return isinstance(t, jax.custom_derivatives.SymbolicZero)
+
+
+def _dense(t, p):
+    """a tangent as an array (a symbolic zero for an input JAX does not differentiate)"""
+    return jnp.zeros(jnp.shape(p), jnp.result_type(p)) if _zero(t) else t
+
+
+def _check_fext(op, names, tangents):
+    if "f_ext" in names and not _zero(tangents[names.index("f_ext")]):
+        raise NotImplementedError(f"rbdkit.jax: {op}'s derivative with respect to f_ext is not available yet; "
+                                  f"treat f_ext as a constant (jax.lax.stop_gradient) or differentiate without it")
+
+
+def _check_convention(h, op, call):
+    """the derivative rules work in Pinocchio's coordinates; MuJoCo's differ where a model has
+    quaternions (their order, the free joint's velocity frame)"""
+    if h._quats and call.get("output_convention", h.output_convention) == "mujoco":
+        raise NotImplementedError(f"rbdkit.jax: {op}'s derivative in MuJoCo's output convention on a model with "
+                                  f"free-flyer or spherical joints is not available; differentiate in the "
+                                  f"Pinocchio convention (output_convention='pinocchio')")
+
+
+def _only(kw, op):
+    """the arguments of the call `kw` that operation `op` takes"""
+    names = {a[0] for a in _signature(op)}
+    return {k: v for k, v in kw.items() if k in names}
+
+
+def _dynamics_rule(h, op, args, kwargs):
+    """inverse_dynamics (q, qd, qdd -> tau) and forward_dynamics / aba (q, qd, u -> qdd)"""
+    kw, names = _bind(h, op, args, kwargs)
+    third = "qdd" if op == "inverse_dynamics" else names[2]
+
+    @jax.custom_jvp
+    def f(*arrays):
+        return h._values(op, (), _with(kw, names, arrays))
+
+    def jvp(primals, tangents):
+        _check_fext(op, names, tangents)
+        call = _with(kw, names, primals)
+        _check_convention(h, op, call)
+        q, qd = call["q"], call["qd"]
+        if op == "inverse_dynamics":
+            out = h._values(op, (), call)
+            D = h._values("inverse_dynamics_gradient", (), _only(call, "inverse_dynamics_gradient"))
+            Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
+            D3 = h._values("crba", (), {"q": q})  # ∂τ/∂qdd = M
+        else:  # one call: ∂qdd/∂q, ∂qdd/∂qd, qdd and ∂qdd/∂u = M⁻¹
+            g = _only(call, "forward_dynamics_gradient")
+            g["u"] = call[third]
+            Dq, Dqd, out, D3 = h._values("forward_dynamics_gradient", (), g, outputs=0b1111)
+        t = dict(zip(names, tangents))
+        dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
+        if third in t and not _zero(t[third]):
+            dout = dout + _mv(D3, t[third])
+        out, dout = _vary_like([out, dout], [out, dout])
+        return out, dout
+
+    f.defjvp(jvp, symbolic_zeros=True)
+    return f(*[kw[n] for n in names])
+
+
+def _step_rule(h, op, args, kwargs):
+    """integrator (q, qd, u -> x⁺) and plant_step (x, u -> x⁺): [A | B] in the tangent space"""
+    kw, names = _bind(h, op, args, kwargs)
+    grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
+
+    @jax.custom_jvp
+    def f(*arrays):
+        return h._values(op, (), _with(kw, names, arrays))
+
+    def jvp(primals, tangents):
+        _check_fext(op, names, tangents)
+        call = _with(kw, names, primals)
+        _check_convention(h, op, call)
+        x_next, AB = h._values(grad_op, (), call, outputs=0b11)
+        nq, nv = h.nq, h.nv
+        t = {n: _dense(tn, call[n]) for n, tn in zip(names, tangents)}
+        if op == "integrator":
+            q, tq, tqd = call["q"], t["q"], t["qd"]
+        else:
+            q, tq, tqd = call["x"][..., :nq], t["x"][..., :nq], t["x"][..., nq:]
+        dx = jnp.concatenate([_to_tangent(h, q, tq), tqd, t["u"]], -1)
+        d = _mv(AB, dx)  # [δq⁺ in the tangent space; δqd⁺]
+        dnext = jnp.concatenate([_from_tangent(h, x_next[..., :nq], d[..., :nv]), d[..., nv:]], -1)
+        x_next, dnext = _vary_like([x_next, dnext], [x_next, dnext])
+        return x_next, dnext
+
+    f.defjvp(jvp, symbolic_zeros=True)
+    return f(*[kw[n] for n in names])
+
+
+_RULES = {"inverse_dynamics": _dynamics_rule, "forward_dynamics": _dynamics_rule, "aba": _dynamics_rule,
+          "integrator": _step_rule, "plant_step": _step_rule}

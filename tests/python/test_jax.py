@@ -1,0 +1,320 @@
+"""rbdkit.jax: the XLA FFI calls against the NumPy handle (the same engine:
+bit for bit), leading batch shapes, jit and vmap, the derivative rules against
+central differences of the NumPy path (in the tangent space for q), the
+coordinate / tangent maps of quaternion joints, and the errors."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax") if os.environ.get("CI") != "true" else __import__("jax")
+import jax.numpy as jnp  # noqa: E402
+
+import rbdkit  # noqa: E402
+import rbdkit.jax as rj  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+URDF = os.path.join(ROOT, "tests", "urdf")
+
+# every robot family: serial arm, quadruped and humanoid with free flyers,
+# spherical, helical, planar (prismatic and continuous) and mimic joints
+MODELS = [("iiwa", False), ("hyq", True), ("atlas", True), ("spherical", False), ("helical", True),
+          ("planar", False), ("mimic", False)]
+SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
+
+
+def load(name, floating):
+    if name in rbdkit.robots.names():
+        return rbdkit.robots.load(name, floating_base=floating)
+    return rbdkit.Model.from_urdf(os.path.join(URDF, name + ".urdf"), floating_base=floating)
+
+
+_HANDLES = {}
+
+
+def handle(name, floating, dtype="float64"):
+    key = (name, floating, dtype)
+    if key not in _HANDLES:
+        _HANDLES[key] = rj.Handle(load(name, floating), dtype=dtype, threads=1)
+    return _HANDLES[key]
+
+
+def states(h, B, seed=0):
+    rng = np.random.default_rng(seed)
+    q = np.stack([h.numpy.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
+    qd, u = rng.uniform(-1, 1, (B, h.nv)), rng.uniform(-1, 1, (B, h.nv))
+    return q, qd, u
+
+
+# a representative call of every kind of argument: optional arrays (qdd,
+# f_ext), reals, choices, integrators, frames, end effectors, several outputs,
+# third-order tensors
+def calls(h, q, qd, u):
+    x = np.concatenate([q, qd], -1)
+    frame = h.model.frame_names[len(h.model.frame_names) // 2]
+    f_ext = 0.3 * np.ones(q.shape[:-1] + (h.nb, 6))
+    return [
+        ("inverse_dynamics", (q, qd, u), {}),
+        ("inverse_dynamics", (q, qd), {"gravity": -3.0, "f_ext": f_ext}),
+        ("crba", (q,), {}),
+        ("minv", (q,), {}),
+        ("forward_dynamics_gradient", (q, qd, u), {}),
+        ("integrator", (q, qd, u, 0.01, "rk4"), {}),
+        ("plant_step_gradient", (x, u, 0.01, "midpoint"), {}),
+        ("dDifference", (q, q), {"with_respect_to": "from"}),
+        ("frame_jacobian", (q, frame), {}),
+        ("end_effector_pose", (q,), {}),
+        ("idsva_so", (q, qd, u), {}),
+        ("com", (q,), {}),
+    ]
+
+
+def as_list(r):
+    return list(r) if isinstance(r, tuple) else [r]
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("atlas", True)])
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_values_equal_the_numpy_handle(name, floating, dtype):
+    h = handle(name, floating, dtype)
+    q, qd, u = (a.astype(dtype) for a in states(h, 4))
+    for op, args, kw in calls(h, q, qd, u):
+        want = as_list(getattr(h.numpy, op)(*args, **kw))
+        eager = as_list(getattr(h, op)(*args, **kw))
+        jitted = as_list(jax.jit(lambda *a: getattr(h, op)(*a, **kw), static_argnums=tuple(
+            i for i, a in enumerate(args) if not isinstance(a, np.ndarray)))(*args))
+        assert len(want) == len(eager) == len(jitted), op
+        for w, e, j in zip(want, eager, jitted):
+            assert e.dtype == np.dtype(dtype) and e.shape == w.shape, op
+            np.testing.assert_array_equal(np.asarray(e), w, err_msg=op)  # the same engine: bit for bit
+            np.testing.assert_array_equal(np.asarray(j), w, err_msg=op)
+
+
+def test_leading_batch_shapes_and_broadcasting():
+    h = handle("hyq", True)
+    q, qd, u = states(h, 6)
+    flat = h.numpy.forward_dynamics(q, qd, u)
+    out = h.forward_dynamics(q.reshape(2, 3, -1), qd.reshape(2, 3, -1), u.reshape(2, 3, -1))
+    assert out.shape == (2, 3, h.nv)
+    np.testing.assert_array_equal(np.asarray(out).reshape(6, -1), flat)
+    # one sample against a batch: broadcast on the leading axes
+    out = h.forward_dynamics(q[0], qd, u)
+    np.testing.assert_array_equal(np.asarray(out), h.numpy.forward_dynamics(np.tile(q[0], (6, 1)), qd, u))
+    # one sample: no batch axis
+    assert h.crba(q[0]).shape == (h.nv, h.nv)
+    assert h.integrator(q[0], qd[0], u[0], 0.01).shape == (h.nq + h.nv,)
+
+
+def test_vmap_equals_the_batched_call():
+    h = handle("atlas", True)
+    q, qd, u = states(h, 6)
+    want = h.numpy.inverse_dynamics(q, qd, u)
+    np.testing.assert_array_equal(np.asarray(jax.vmap(h.inverse_dynamics)(q, qd, u)), want)
+    np.testing.assert_array_equal(np.asarray(jax.jit(jax.vmap(h.inverse_dynamics))(q, qd, u)), want)
+    nested = jax.vmap(jax.vmap(h.inverse_dynamics))(q.reshape(2, 3, -1), qd.reshape(2, 3, -1), u.reshape(2, 3, -1))
+    np.testing.assert_array_equal(np.asarray(nested).reshape(6, -1), want)
+    # an unbatched argument (in_axes None)
+    got = jax.vmap(h.inverse_dynamics, in_axes=(0, None, 0))(q, qd[0], u)
+    np.testing.assert_array_equal(np.asarray(got), h.numpy.inverse_dynamics(q, np.tile(qd[0], (6, 1)), u))
+    # a vmapped gradient
+    g = jax.vmap(jax.grad(lambda u: jnp.sum(h.aba(q[0], qd[0], u) ** 2)))(u)
+    assert g.shape == u.shape
+
+
+def central_difference(f, x, eps=1e-5, step=None, n=None):
+    """∂f/∂x (outputs x inputs) by central differences; step(x, dx) moves x (default x + dx) along
+    n directions (default x's size)"""
+    step = step or (lambda x, d: x + d)
+    n = n or x.shape[-1]
+    return np.stack([(f(step(x, eps * e)) - f(step(x, -eps * e))) / (2 * eps) for e in np.eye(n)], -1)
+
+
+def on_manifold(h):
+    """central differences in the tangent space at q: q ⊕ d"""
+    return {"step": h.numpy.rbd.integrate, "n": h.nv}
+
+
+def rel(a, b):
+    return np.max(np.abs(np.asarray(a) - b)) / max(1.0, np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("name,floating", MODELS)
+def test_dynamics_gradients_against_central_differences(name, floating):
+    h = handle(name, floating)
+    q, qd, u = (a[0] for a in states(h, 1, seed=3))
+    w = np.random.default_rng(4).standard_normal(h.nv)
+    for op in ("inverse_dynamics", "forward_dynamics", "aba"):
+        f_np = getattr(h.numpy, op)
+        # reverse mode: the gradient of w·f, each input; q's through the tangent space (module doc)
+        gq, gqd, gu = jax.grad(lambda q, qd, u: jnp.dot(w, getattr(h, op)(q, qd, u)), argnums=(0, 1, 2))(q, qd, u)
+        Jq = central_difference(lambda x: f_np(x, qd, u), q, **on_manifold(h))
+        Jqd = central_difference(lambda x: f_np(q, x, u), qd)
+        Ju = central_difference(lambda x: f_np(q, qd, x), u)
+        assert rel(h.tangent_gradient(q, gq), w @ Jq) < 1e-6, op
+        assert rel(gqd, w @ Jqd) < 1e-6, op
+        assert rel(gu, w @ Ju) < 1e-6, op
+        # forward mode: the Jacobian with respect to qd and u
+        Jf = jax.jacfwd(lambda qd, u: getattr(h, op)(q, qd, u), argnums=(0, 1))(qd, u)
+        assert rel(Jf[0], Jqd) < 1e-6 and rel(Jf[1], Ju) < 1e-6, op
+
+
+@pytest.mark.parametrize("name,floating", MODELS)
+def test_step_gradients_against_central_differences(name, floating):
+    h = handle(name, floating)
+    q, qd, u = (a[0] for a in states(h, 1, seed=5))
+    x = np.concatenate([q, qd])
+    rng = np.random.default_rng(6)
+    for scheme in SCHEMES:
+        wq, wqd = rng.standard_normal(h.nq), rng.standard_normal(h.nv)
+
+        def f_np(q, qd, u):
+            xn = h.numpy.integrator(q, qd, u, 0.01, scheme)
+            return wq @ xn[:h.nq] + wqd @ xn[h.nq:]
+
+        def f(q, qd, u):
+            xn = h.integrator(q, qd, u, 0.01, scheme)
+            return jnp.dot(wq, xn[:h.nq]) + jnp.dot(wqd, xn[h.nq:])
+
+        gq, gqd, gu = jax.grad(f, argnums=(0, 1, 2))(q, qd, u)
+        assert rel(h.tangent_gradient(q, gq), central_difference(lambda z: f_np(z, qd, u), q,
+                                                                 **on_manifold(h))) < 1e-6, scheme
+        assert rel(gqd, central_difference(lambda z: f_np(q, z, u), qd)) < 1e-6, scheme
+        assert rel(gu, central_difference(lambda z: f_np(q, qd, z), u)) < 1e-6, scheme
+        # plant_step: x⁺'s Jacobian in u, forward and reverse mode alike
+        Jf = jax.jacfwd(lambda u: h.plant_step(x, u, 0.01, scheme))(u)
+        Jr = jax.jacrev(lambda u: h.plant_step(x, u, 0.01, scheme))(u)
+        Jn = central_difference(lambda z: h.numpy.plant_step(x, z, 0.01, scheme), u)
+        assert rel(Jf, Jn) < 1e-6 and rel(Jr, Jn) < 1e-6, scheme
+
+
+@pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
+def test_coordinate_and_tangent_maps(name, floating):
+    h = handle(name, floating)
+    q = states(h, 1, seed=7)[0][0]
+    # E: the derivative of integrate at zero, by central differences
+    E = central_difference(lambda d: h.numpy.rbd.integrate(q, d), np.zeros(h.nv))
+    I = np.eye(h.nv)
+    Ej = np.stack([np.asarray(h.from_tangent(q, e)) for e in I], -1)
+    assert rel(Ej, E) < 1e-8
+    # E⁺ E = I, and Eᵀ is the transpose of E
+    assert rel(np.stack([np.asarray(h.to_tangent(q, E[:, k])) for k in range(h.nv)], -1), I) < 1e-8
+    g = np.random.default_rng(8).standard_normal(h.nq)
+    assert rel(h.tangent_gradient(q, g), E.T @ g) < 1e-8
+    # a coordinate gradient from JAX has no component along a quaternion (its norm is not a coordinate)
+    gq = jax.grad(lambda q: jnp.sum(h.forward_dynamics(q, np.zeros(h.nv), np.ones(h.nv))))(q)
+    for j in h.model.joints:
+        if j["type"] in ("free", "spherical"):
+            k = j["q_index"] + (3 if j["type"] == "free" else 0)
+            assert abs(np.dot(gq[k:k + 4], q[k:k + 4])) < 1e-9
+
+
+def test_operations_without_a_rule_and_f_ext_say_so():
+    h = handle("iiwa", False)
+    q, qd, u = (a[0] for a in states(h, 1))
+    with pytest.raises(NotImplementedError, match="crba computes values only"):
+        jax.grad(lambda q: jnp.sum(h.crba(q)))(q)
+    with pytest.raises(NotImplementedError, match="f_ext"):
+        jax.grad(lambda f: jnp.sum(h.inverse_dynamics(q, qd, u, f_ext=f)))(np.zeros((h.nb, 6)))
+    # MuJoCo's coordinates on a model with quaternions: values, but no derivative
+    hq = handle("hyq", True)
+    x = np.concatenate(states(hq, 1)[:2], -1)[0]
+    xm = hq.numpy.state_to_mujoco(x)
+    np.testing.assert_array_equal(np.asarray(hq.plant_step(xm, np.zeros(hq.nv), 0.01, output_convention="mujoco")),
+                                  hq.numpy.plant_step(xm, np.zeros(hq.nv), 0.01, output_convention="mujoco"))
+    with pytest.raises(NotImplementedError, match="MuJoCo's output convention"):
+        jax.grad(lambda u: jnp.sum(hq.plant_step(xm, u, 0.01, output_convention="mujoco")))(np.zeros(hq.nv))
+    # f_ext as a constant: fine
+    g = jax.grad(lambda u: jnp.sum(h.aba(q, qd, u, f_ext=np.ones((h.nb, 6)))))(u)
+    assert np.all(np.isfinite(g))
+
+
+def test_bad_input_is_a_clear_error():
+    h = handle("iiwa", False)
+    q, qd, u = (a[0] for a in states(h, 1))
+    with pytest.raises(ValueError, match=r"qd: expected shape \(\.\.\., 7\)"):
+        h.inverse_dynamics(q, qd[:3], u)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'tau'"):
+        h.inverse_dynamics(q, qd, tau=u)
+    with pytest.raises(ValueError, match="integrator_type"):
+        h.integrator(q, qd, u, 0.01, "rk5")
+    with pytest.raises(ValueError, match="dt"):
+        h.integrator(q, qd, u, -1.0)
+    # parameters are Python values, fixed at trace time
+    with pytest.raises(TypeError, match="dt"):
+        jax.jit(lambda dt: h.integrator(q, qd, u, dt))(0.01)
+    # the engine's checks inside a jitted call: the message names the argument and the sample
+    bad = np.tile(q, (3, 1))
+    bad[1, 2] = np.nan
+    with pytest.raises(Exception, match=r"q\[1\]"):
+        jax.block_until_ready(jax.jit(h.crba)(bad))
+    with pytest.raises(ValueError, match="not built with it"):
+        rj.Handle(h.model, algorithms=["inverse_dynamics"]).minv(q)
+
+
+def test_float64_needs_64_bit_mode_and_float32_works_without():
+    code = ("import jax, numpy as np, rbdkit, rbdkit.jax as rj\n"
+            "m = rbdkit.robots.load('iiwa')\n"
+            "try:\n    rj.Handle(m)\nexcept ValueError as e:\n    print('refused:', e)\n"
+            "h = rj.Handle(m, dtype='float32')\n"
+            "print(h.crba(np.zeros(7, np.float32)).dtype)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
+    assert r.returncode == 0, r.stderr
+    assert "refused: dtype: a float64 handle needs JAX's 64-bit mode" in r.stdout
+    assert "float32" in r.stdout.splitlines()[-1]
+
+
+def test_rbdkit_imports_without_jax():
+    code = ("import sys; sys.modules['jax'] = None\n"
+            "import rbdkit\n"
+            "try:\n    import rbdkit.jax\nexcept ImportError as e:\n    print('ImportError:', e)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
+    assert r.returncode == 0, r.stderr
+    assert "ImportError: rbdkit.jax needs JAX: pip install 'jax[cpu]'" in r.stdout
+
+
+SHARDED = r"""
+import os
+os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=4"
+import jax, jax.numpy as jnp, numpy as np, rbdkit, rbdkit.jax as rj
+from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
+jax.config.update("jax_enable_x64", True)
+assert len(jax.devices()) == 4
+m = rbdkit.robots.load("hyq", floating_base=True)
+h = rj.Handle(m, threads=1)
+rng = np.random.default_rng(0)
+B = 16
+q = np.stack([m.random_configuration(rng) for _ in range(B)])
+qd, u = rng.uniform(-1, 1, (B, m.nv)), rng.uniform(-1, 1, (B, m.nv))
+mesh = Mesh(np.array(jax.devices()), ("batch",))
+sh = NamedSharding(mesh, P("batch"))
+qs, qds, us = (jax.device_put(a, sh) for a in (q, qd, u))
+# each device computes its own shard: the custom call's operands are the 4-sample shards
+fd = jax.shard_map(h.forward_dynamics, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"))
+f = jax.jit(fd)
+out = f(qs, qds, us)
+hlo = f.lower(qs, qds, us).compile().as_text()
+calls = [l for l in hlo.splitlines() if 'custom_call_target="rbdkit_op"' in l]
+assert calls and all("f64[4,18]" in l for l in calls), calls
+assert out.sharding.spec == P("batch")
+np.testing.assert_array_equal(np.asarray(out), h.numpy.forward_dynamics(q, qd, u))
+# a sharded gradient equals the unsharded one
+g = jax.jit(jax.grad(lambda u: (fd(qs, qds, u) ** 2).sum()))(us)
+g1 = jax.grad(lambda u: (h.forward_dynamics(q, qd, u) ** 2).sum())(u)
+np.testing.assert_allclose(np.asarray(g), np.asarray(g1), rtol=1e-13, atol=1e-12)
+# a sharded rollout step: jit over NamedSharding inputs gives the unsharded result too
+x = jnp.concatenate([qs, qds], -1)
+np.testing.assert_array_equal(np.asarray(jax.jit(lambda x, u: h.plant_step(x, u, 0.01, "rk4"))(x, us)),
+                              h.numpy.plant_step(np.concatenate([q, qd], -1), u, 0.01, "rk4"))
+print("sharded ok")
+"""
+
+
+def test_a_batch_sharded_over_four_host_devices():
+    r = subprocess.run([sys.executable, "-c", SHARDED], capture_output=True, text=True, cwd="/")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "sharded ok" in r.stdout
