@@ -10,6 +10,14 @@ bash scripts/setup.sh --test
 PY=${PYTHON:-python3}
 JOBS=${JOBS:-$(nproc)}
 
+# JAX and PyTorch (rbdkit.jax, rbdkit.torch): downloaded and installed in the
+# background while the C++ builds (a few GB, mostly network time); waited for
+# before the Python package is built (its XLA FFI handler needs jaxlib's headers)
+mkdir -p build
+PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore PIP_DISABLE_PIP_VERSION_CHECK=1 \
+  "$PY" -m pip install -q -r requirements-frameworks.txt >build/frameworks-install.log 2>&1 &
+frameworks_pid=$!
+
 # ---- C++: library with the CUDA backend's real kernels (nvcc), GoogleTest
 # suite (the CUDA backend in interpret mode included), find_package consumer.
 # The kernels as PTX for one architecture here (RBDKIT_TEST_CUDA_ARCH, default
@@ -50,6 +58,11 @@ JOBS="$JOBS" scripts/fuzz.sh
 RBDKIT_PINOCCHIO_BUILD=build/cpp JOBS="$JOBS" PYTHON="$PY" tests/pinocchio_so/run.sh
 
 # ---- Python: build and install the package, then pytest (last: its summary closes the run)
+if ! wait "$frameworks_pid"; then
+  cat build/frameworks-install.log
+  echo "test: installing JAX and PyTorch (requirements-frameworks.txt) failed" >&2
+  exit 1
+fi
 echo "building the Python package (pip install .) ..."
 # (linked to build/cpp's librbdkit.a: the library is not compiled a second time)
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation . \

@@ -1,4 +1,6 @@
-// python/src/bind_jax.cpp — the XLA FFI handler behind rbdkit.jax: one
+// python/src/bind_jax.cpp — the framework calls: rbdkit_run_raw, one call of
+// any registered operation on raw arrays (rbdkit.torch's kernel, `run_raw`),
+// and the XLA FFI handler behind rbdkit.jax: one
 // handler, `rbdkit_op`, runs any registered operation of an rbd::Handle on
 // XLA's buffers, in place (no copy), on the CPU through the handle's batch
 // engine. rbdkit/jax.py lays out each call (OpHandle.plan) and passes:
@@ -19,8 +21,9 @@
 // fails, a failed sample) come back as XLA errors carrying rbdkit's message.
 // Built only where jaxlib's headers were found (RBDKIT_HAS_XLA_FFI).
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
 
-#ifdef RBDKIT_HAS_XLA_FFI
 #include <cstdint>
 #include <exception>
 #include <stdexcept>
@@ -29,10 +32,69 @@
 
 #include "rbdkit/handle/handle.hpp"
 #include "rbdkit/ops/table.hpp"
+
+namespace ops = rbd::ops;
+
+// one call of a registered operation of handle h on raw row-major arrays in
+// its dtype: ins[j] (counts[j] values) is argument slots[j], outs[j] is output
+// outputs[j]; reals and choices per argument; ee the end effectors' bodies.
+// B is the first array's samples (every array must hold as many). Returns
+// "" or the error (invalid: a bad argument rather than a failed computation).
+// The XLA FFI handler (rbdkit.jax) and rbdkit.torch's kernel call it.
+std::string rbdkit_run_raw(rbd::Handle* h, int64_t op_id, const int64_t* slots, const void* const* ins,
+                           const long* counts, size_t n_in, const int64_t* outputs, void* const* outs, size_t n_out,
+                           const double* reals, size_t n_reals, const int64_t* choices, size_t n_choices,
+                           const int64_t* ee, size_t n_ee, bool& invalid) {
+  invalid = true;
+  if (!h || op_id < 0 || op_id >= static_cast<int64_t>(ops::op_table().size()) || !h->has_op(static_cast<int>(op_id)))
+    return "rbdkit: no such operation on this handle";
+  const ops::OpSpec& op = *ops::op_table()[op_id].spec;
+  const rbd::Model& m = h->model();
+  if (n_reals != size_t(op.n_args) || n_choices != size_t(op.n_args) || n_in > size_t(op.n_args) ||
+      n_out > size_t(op.n_out))
+    return std::string(op.name) + ": the call's layout does not match the operation";
+  ops::OpCall c;
+  std::vector<int> bodies(ee, ee + n_ee);
+  c.ee = bodies.empty() ? nullptr : bodies.data();
+  c.n_ee = static_cast<int>(bodies.size());
+  for (int k = 0; k < op.n_args; ++k) c.real[k] = reals[k], c.choice[k] = static_cast<int>(choices[k]);
+  long B = -1;
+  for (size_t j = 0; j < n_in; ++j) {
+    const int k = static_cast<int>(slots[j]);
+    if (k < 0 || k >= op.n_args) return std::string(op.name) + ": bad argument slot";
+    const long w = ops::arg_values(op.args[k], m, c.n_ee);
+    if (w <= 0 || counts[j] % w != 0)
+      return std::string(op.args[k].name) + ": " + std::to_string(counts[j]) +
+             " values are not a whole number of samples of " + std::to_string(w);
+    if (B >= 0 && counts[j] / w != B)
+      return std::string(op.args[k].name) + ": " + std::to_string(counts[j] / w) + " samples, where the call has " +
+             std::to_string(B);
+    B = counts[j] / w;
+    c.in[k] = ins[j];
+    c.batched[k] = true;
+  }
+  for (size_t j = 0; j < n_out; ++j) {
+    const int o = static_cast<int>(outputs[j]);
+    if (o < 0 || o >= op.n_out) return std::string(op.name) + ": bad output slot";
+    c.out[o] = outs[j];
+  }
+  if (B == 0) return "";  // an empty batch
+  c.B = B < 0 ? 1 : B;
+  try {
+    h->run(static_cast<int>(op_id), c);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    invalid = false;
+    return e.what();
+  }
+  return "";
+}
+
+#ifdef RBDKIT_HAS_XLA_FFI
 #include "xla/ffi/api/ffi.h"
 
 namespace ffi = xla::ffi;
-namespace ops = rbd::ops;
 
 namespace {
 
@@ -40,56 +102,30 @@ ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t hand
                   ffi::Span<const int64_t> slots, ffi::Span<const int64_t> outputs, ffi::Span<const double> reals,
                   ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee) {
   rbd::Handle* h = reinterpret_cast<rbd::Handle*>(handle);
-  if (!h || op_id < 0 || op_id >= static_cast<int64_t>(ops::op_table().size()) || !h->has_op(static_cast<int>(op_id)))
-    return ffi::Error::InvalidArgument("rbdkit_op: no such operation on this handle");
-  const ops::OpSpec& op = *ops::op_table()[op_id].spec;
-  const rbd::Model& m = h->model();
-  if (slots.size() != args.size() || outputs.size() != rets.size() || reals.size() != size_t(op.n_args) ||
-      choices.size() != size_t(op.n_args))
-    return ffi::Error::InvalidArgument(std::string(op.name) + ": the XLA call's layout does not match the operation");
-  const ffi::DataType want = h->dtype() == "float32" ? ffi::DataType::F32 : ffi::DataType::F64;
-  ops::OpCall c;
-  std::vector<int> bodies(ee.begin(), ee.end());
-  c.ee = bodies.empty() ? nullptr : bodies.data();
-  c.n_ee = static_cast<int>(bodies.size());
-  for (int k = 0; k < op.n_args; ++k) c.real[k] = reals[k], c.choice[k] = static_cast<int>(choices[k]);
-  long B = -1;
+  const ffi::DataType want = h && h->dtype() == "float32" ? ffi::DataType::F32 : ffi::DataType::F64;
+  std::vector<const void*> ins(args.size());
+  std::vector<long> counts(args.size());
+  std::vector<void*> outs(rets.size());
   for (size_t j = 0; j < args.size(); ++j) {
-    const int k = static_cast<int>(slots[j]);
     ffi::ErrorOr<ffi::AnyBuffer> buf = args.get<ffi::AnyBuffer>(j);
     if (buf.has_error()) return buf.error();
-    if (k < 0 || k >= op.n_args) return ffi::Error::InvalidArgument(std::string(op.name) + ": bad argument slot");
     if (buf->element_type() != want)
-      return ffi::Error::InvalidArgument(std::string(op.args[k].name) + ": expected the handle's dtype, " + h->dtype());
-    const long w = ops::arg_values(op.args[k], m, c.n_ee);
-    const long n = static_cast<long>(buf->element_count());
-    if (w <= 0 || n % w != 0)
-      return ffi::Error::InvalidArgument(std::string(op.args[k].name) + ": " + std::to_string(n) +
-                                         " values are not a whole number of samples of " + std::to_string(w));
-    if (B >= 0 && n / w != B)
-      return ffi::Error::InvalidArgument(std::string(op.args[k].name) + ": " + std::to_string(n / w) +
-                                         " samples, where the call has " + std::to_string(B));
-    B = n / w;
-    c.in[k] = buf->untyped_data();
-    c.batched[k] = true;
+      return ffi::Error::InvalidArgument("rbdkit_op: an array is not in the handle's dtype, " + h->dtype());
+    ins[j] = buf->untyped_data();
+    counts[j] = static_cast<long>(buf->element_count());
   }
   for (size_t j = 0; j < rets.size(); ++j) {
-    const int o = static_cast<int>(outputs[j]);
     ffi::ErrorOr<ffi::Result<ffi::AnyBuffer>> buf = rets.get<ffi::AnyBuffer>(j);
     if (buf.has_error()) return buf.error();
-    if (o < 0 || o >= op.n_out) return ffi::Error::InvalidArgument(std::string(op.name) + ": bad output slot");
-    c.out[o] = (*buf)->untyped_data();
+    outs[j] = (*buf)->untyped_data();
   }
-  if (B == 0) return ffi::Error::Success();  // an empty batch
-  c.B = B < 0 ? 1 : B;
-  try {
-    h->run(static_cast<int>(op_id), c);
-  } catch (const std::invalid_argument& e) {
-    return ffi::Error::InvalidArgument(e.what());
-  } catch (const std::exception& e) {
-    return ffi::Error::Internal(e.what());
-  }
-  return ffi::Error::Success();
+  bool invalid = false;
+  const std::string err =
+      rbdkit_run_raw(h, op_id, slots.begin(), ins.data(), counts.data(), ins.size(), outputs.begin(), outs.data(),
+                     outs.size(), reals.begin(), reals.size(), choices.begin(), choices.size(), ee.begin(), ee.size(),
+                     invalid);
+  if (err.empty()) return ffi::Error::Success();
+  return invalid ? ffi::Error::InvalidArgument(err) : ffi::Error::Internal(err);
 }
 
 }  // namespace
@@ -108,8 +144,36 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op,
 #endif
 
 namespace nb = nanobind;
+using namespace nb::literals;
 
 void bind_jax(nb::module_& m) {
+  // rbdkit.torch's kernel: run_raw on arrays given as addresses (data_ptr()) and value counts;
+  // raises ValueError (a bad argument) or RuntimeError (a failed computation) with rbdkit's message
+  m.def("run_raw", [](uintptr_t handle, int64_t op, const std::vector<int64_t>& slots,
+                      const std::vector<uintptr_t>& ins, const std::vector<long>& counts,
+                      const std::vector<int64_t>& outputs, const std::vector<uintptr_t>& outs,
+                      const std::vector<double>& reals, const std::vector<int64_t>& choices,
+                      const std::vector<int64_t>& ee) {
+    if (slots.size() != ins.size() || counts.size() != ins.size() || outputs.size() != outs.size())
+      throw nb::value_error("run_raw: the arrays and their slots differ in number");
+    std::vector<const void*> in_p(ins.size());
+    std::vector<void*> out_p(outs.size());
+    for (size_t j = 0; j < ins.size(); ++j) in_p[j] = reinterpret_cast<const void*>(ins[j]);
+    for (size_t j = 0; j < outs.size(); ++j) out_p[j] = reinterpret_cast<void*>(outs[j]);
+    bool invalid = false;
+    std::string err;
+    {
+      nb::gil_scoped_release nogil;
+      err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p.data(), counts.data(),
+                           in_p.size(), outputs.data(), out_p.data(), out_p.size(), reals.data(), reals.size(),
+                           choices.data(), choices.size(), ee.data(), ee.size(), invalid);
+    }
+    if (!err.empty()) {
+      if (invalid) throw nb::value_error(err.c_str());
+      throw std::runtime_error(err);
+    }
+  }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "reals"_a, "choices"_a, "ee"_a);
+
   // {platform: PyCapsule of the XLA FFI handler} for jax.ffi.register_ffi_target; None in a build
   // without jaxlib's headers
   m.def("jax_ffi_handlers", []() -> nb::object {

@@ -1,0 +1,346 @@
+"""rbdkit.torch: the operations of rbdkit.Handle on PyTorch tensors, as one
+`torch.library` custom operator (`rbdkit::call`) with autograd formulas from
+rbdkit's analytical derivatives and a fake kernel, so that torch.compile
+traces it without graph breaks.
+
+    import rbdkit, rbdkit.torch
+    h = rbdkit.torch.Handle(rbdkit.robots.load("iiwa"))
+    qdd = h.forward_dynamics(q, qd, u)       # tensors (..., nq), (..., nv), (..., nv)
+    qdd.sum().backward()                     # q.grad, qd.grad, u.grad: analytical
+
+Methods are named, ordered and checked as rbdkit.Handle's, and take any
+leading batch shape (broadcast on the leading axes). Tensors are CPU tensors
+in the handle's dtype (float64 by default); parameters are Python values.
+
+Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M), forward_dynamics
+and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), and the
+integrator and plant_step for every scheme ([A | B]). Gradients with respect
+to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
+tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
+along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
+other operations compute values; a backward pass through one raises.
+"""
+
+import weakref
+
+import numpy as np
+
+try:
+    import torch
+except ImportError as e:  # an optional dependency
+    raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
+
+from . import _core
+from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
+
+_SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
+_NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
+_HANDLES = weakref.WeakValueDictionary()  # a C++ handle's address -> its rbdkit.torch.Handle (for backward)
+
+_DERIVATIVE_ALGORITHMS = {
+    "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
+    "forward_dynamics": ("forward_dynamics_gradient",),
+    "aba": ("forward_dynamics_gradient",),
+    "integrator": ("integrator_gradient",),
+    "plant_step": ("integrator_gradient",),
+}
+
+
+# ---------------------------------------------------------------- the custom operator
+
+@torch.library.custom_op("rbdkit::call", mutates_args=())
+def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
+          choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
+          out_ranks: list[int]) -> list[torch.Tensor]:
+    """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
+    returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
+    xs = [x.contiguous() for x in xs]
+    dtype = xs[0].dtype if xs else torch.float64
+    outs = [torch.empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
+    _core.run_raw(handle, op, slots, [x.data_ptr() for x in xs], [x.numel() for x in xs], outputs,
+                  [o.data_ptr() for o in outs], reals, choices, ee)
+    return outs
+
+
+@_call.register_fake
+def _call_fake(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks):
+    dtype = xs[0].dtype if xs else torch.float64
+    return [xs[0].new_empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
+
+
+def _shapes(flat, ranks):
+    shapes, i = [], 0
+    for r in ranks:
+        shapes.append(tuple(flat[i:i + r]))
+        i += r
+    return shapes
+
+
+def _setup_context(ctx, inputs, output):
+    xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks = inputs
+    ctx.save_for_backward(*xs, *output)
+    ctx.n_in = len(xs)
+    ctx.call = (handle, op, list(slots), list(outputs), list(reals), list(choices), list(ee))
+    # backward returns the inputs' structure: None for each parameter, [] for an empty list
+    ctx.rest = [[] if isinstance(a, (list, tuple)) and len(a) == 0 else None for a in inputs[1:]]
+
+
+def _backward(ctx, grads):
+    saved = ctx.saved_tensors
+    xs, outs = list(saved[:ctx.n_in]), list(saved[ctx.n_in:])
+    handle, op, slots, outputs, reals, choices, ee = ctx.call
+    h = _HANDLES.get(handle)
+    name = _NAMES[op]
+    rule = _RULES.get(name)
+    if h is None or rule is None:
+        raise NotImplementedError(f"rbdkit.torch: {name} computes values only (it has no derivative rule); the "
+                                  f"differentiable operations are {', '.join(sorted(_RULES))}")
+    sig = [a[0] for a in _SIGNATURES[name]]
+    call = {sig[k]: x for k, x in zip(slots, xs)}
+    kw = h._params(name, reals, choices, slots)
+    grads_by_name = rule(h, name, call, kw, [g for g in grads], outs)
+    return ([grads_by_name.get(sig[k]) for k in slots], *ctx.rest)
+
+
+_call.register_autograd(_backward, setup_context=_setup_context)
+
+
+@torch._dynamo.assume_constant_result
+def _plan(address, op, params, arrays, outputs):
+    """a call's layout (OpHandle.plan) from its parameters (name, value) and the names of its arrays;
+    constant for torch.compile (parameters are Python values, fixed at trace time)"""
+    h = _HANDLES[address]
+    kw = dict(params)
+    kw.update({name: 0 for name in arrays})  # the arrays' places (plan does not read them)
+    op_id, planned, reals, choices, ee, outs = h._core.plan(op, (), kw, outputs)
+    sig = _SIGNATURES[op]
+    return (op_id, tuple((k, sig[k][0], tuple(shape)) for k, _, shape in planned), tuple(reals), tuple(choices),
+            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs))
+
+
+# ---------------------------------------------------------------- the handle
+
+class Handle:
+    """A robot's operations on PyTorch tensors (module doc). Attributes: model, numpy (the
+    rbdkit.Handle that runs the calls), dtype (a torch dtype), nq, nv, nb."""
+
+    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
+        if algorithms is not None:
+            if isinstance(algorithms, str):
+                algorithms = [algorithms]
+            extra = [a for alg in list(algorithms) if isinstance(alg, str) and alg in ALGORITHMS
+                     for op in ALGORITHMS[alg][0] for a in _DERIVATIVE_ALGORITHMS.get(op, ())]
+            algorithms = list(algorithms) + [a for a in extra if a not in algorithms]
+        if isinstance(dtype, torch.dtype):
+            dtype = str(dtype).replace("torch.", "")
+        self.numpy = _NumpyHandle(model, algorithms, "cpu", dtype, threads, output_convention)
+        self.model = self.numpy.model
+        self.dtype = getattr(torch, self.numpy.dtype.name)
+        self.nq, self.nv, self.nb = self.model.nq, self.model.nv, self.model.nb
+        self.output_convention = self.numpy.output_convention
+        self._core = self.numpy._core
+        self._address = int(self._core.address)
+        self._quats = [(j["type"], j["q_index"], j["v_index"]) for j in self.model.joints
+                       if j["type"] in ("free", "spherical")]
+        one = [(j["v_index"], j["q_index"]) for j in self.model.joints
+               if j["type"] not in ("free", "spherical") and j["nv"] == 1]
+        self._vi, self._qi = [v for v, _ in one], [q for _, q in one]  # lists: constants under torch.compile
+        _HANDLES[self._address] = self
+
+    def available_operations(self):
+        return self.numpy.available_operations()
+
+    def has(self, name):
+        return self.numpy.has(name)
+
+    def _values(self, op, kwargs, outputs=-1):
+        """the results of op (rbdkit.Handle's, or the outputs of mask `outputs`) as a list of tensors"""
+        kinds = {name: kind for name, kind, _ in _SIGNATURES[op]}
+        tensors, params = {}, []
+        for name, v in kwargs.items():
+            if kinds.get(name) in ("array", "optional") and v is not None:
+                tensors[name] = v if isinstance(v, torch.Tensor) else torch.as_tensor(np.asarray(v))
+            else:
+                params.append((name, tuple(v) if isinstance(v, list) else v))
+        op_id, arrays, reals, choices, ee, outs = _plan(self._address, op, tuple(params), tuple(tensors), outputs)
+        xs = []
+        for k, name, shape in arrays:
+            x = tensors[name]
+            if x.device.type != "cpu":
+                raise ValueError(f"{name}: expected a CPU tensor (rbdkit.torch runs on the CPU engine), got one "
+                                 f"on {x.device}")
+            if x.is_complex() or x.dtype == torch.bool:
+                raise TypeError(f"{name}: expected a real tensor, got dtype {x.dtype}")
+            x = x.to(self.dtype)
+            n = len(shape)
+            if x.dim() < n or tuple(x.shape[x.dim() - n:]) != tuple(shape):
+                raise ValueError(f"{name}: expected shape (..., {', '.join(map(str, shape))}) (any leading batch "
+                                 f"axes), got {tuple(x.shape)}")
+            xs.append(x)
+        batch = torch.broadcast_shapes(*[x.shape[:x.dim() - len(s)] for x, (_, _, s) in zip(xs, arrays)]) \
+            if xs else torch.Size()
+        xs = [x.expand(tuple(batch) + tuple(s)) for x, (_, _, s) in zip(xs, arrays)]
+        flat = [d for _, s in outs for d in s]
+        res = _call(xs, self._address, op_id, [k for k, _, _ in arrays], [o for o, _ in outs], list(reals),
+                    list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs])
+        return list(res)
+
+    def _params(self, op, reals, choices, slots):
+        """the parameters of a call (not its arrays) as keywords, from its reals and choices"""
+        kw = {}
+        for k, (name, kind, _) in enumerate(_SIGNATURES[op]):
+            if k in slots or kind in ("array", "optional"):
+                continue
+            if kind in ("real", "dt", "positive"):
+                kw[name] = reals[k]
+            elif kind == "integrator":
+                kw[name] = _INTEGRATORS[choices[k]]
+            elif kind == "convention":
+                kw[name] = ("pinocchio", "mujoco")[choices[k]]
+            elif kind == "flag":
+                kw[name] = bool(choices[k])
+        return kw
+
+    def _method_call(self, op, args, kwargs):
+        sig = [a[0] for a in _SIGNATURES[op]]
+        if len(args) > len(sig):
+            raise TypeError(f"{op}() takes at most {len(sig)} arguments ({len(args)} given)")
+        kw = dict(zip(sig, args))
+        for name, v in kwargs.items():
+            if name in kw:
+                raise TypeError(f"{op}() got multiple values for argument '{name}'")
+            kw[name] = v
+        if op in _RULES and kw.get("output_convention", self.output_convention) == "mujoco" and self._quats \
+                and any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values()):
+            raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
+                                      f"with free-flyer or spherical joints is not available")
+        if isinstance(kw.get("f_ext"), torch.Tensor) and kw["f_ext"].requires_grad and op in _RULES:
+            raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
+                                      f"yet; pass f_ext.detach()")
+        res = self._values(op, kw)
+        return res[0] if len(res) == 1 else tuple(res)
+
+    # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
+    def tangent_gradient(self, q, grad_q):
+        """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)"""
+        return _tangent_map(self, q, grad_q, "transpose")
+
+    def __repr__(self):
+        return f"<rbdkit.torch.Handle of {self.model!r}: dtype={self.dtype}>"
+
+
+_INTEGRATORS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
+
+
+def _operation_method(op):
+    ref = getattr(_NumpyHandle, op)
+
+    def method(self, *args, **kwargs):
+        if not self.numpy.has(op):
+            raise ValueError(f"{op}: this handle was not built with it; add '{OPERATION_ALGORITHM[op]}' to "
+                             f"algorithms")
+        return self._method_call(op, args, kwargs)
+
+    method.__name__ = method.__qualname__ = op
+    method.__signature__ = getattr(ref, "__signature__", None)
+    method.__doc__ = ref.__doc__
+    return method
+
+
+for _op in OPERATION_ALGORITHM:
+    setattr(Handle, _op, _operation_method(_op))
+del _op
+
+
+# ---------------------------------------------------------------- the coordinates' maps
+
+def _rotation(quat):
+    x, y, z, w = quat.unbind(-1)
+    return torch.stack([
+        torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        torch.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        torch.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def _half_q(quat):
+    """½ Q(q) (..., 4, 3) for q in x y z w order (rbdkit.jax._half_q)"""
+    x, y, z, w = quat.unbind(-1)
+    return 0.5 * torch.stack([torch.stack([w, -z, y], -1), torch.stack([z, w, -x], -1),
+                              torch.stack([-y, x, w], -1), torch.stack([-x, -y, -z], -1)], -2)
+
+
+def _tangent_map(h, q, x, kind):
+    """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv)"""
+    to_q = kind in ("pinv_T", "from_tangent")
+    batch = torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+    out = x.new_zeros(tuple(batch) + ((h.nq,) if to_q else (h.nv,)))
+    if len(h._vi):
+        src, dst = (h._vi, h._qi) if to_q else (h._qi, h._vi)
+        out[..., dst] = x[..., src].expand(tuple(batch) + (len(src),))
+    T = lambda A, y: torch.einsum("...ji,...j->...i", A, y)  # noqa: E731
+    N = lambda A, y: torch.einsum("...ij,...j->...i", A, y)  # noqa: E731
+    for joint, iq, iv in h._quats:
+        qq = iq + 3 if joint == "free" else iq
+        Q = _half_q(q[..., qq:qq + 4])
+        ivr = iv + 3 if joint == "free" else iv
+        if joint == "free":
+            R = _rotation(q[..., qq:qq + 4])
+            if to_q:
+                out[..., iq:iq + 3] = N(R, x[..., iv:iv + 3])
+            else:
+                out[..., iv:iv + 3] = T(R, x[..., iq:iq + 3])
+        if kind == "pinv_T":  # E⁺ = 4 (Q/2)ᵀ for a unit quaternion: E⁺ᵀ = 4 (Q/2)
+            out[..., qq:qq + 4] = 4 * N(Q, x[..., ivr:ivr + 3])
+        elif kind == "from_tangent":
+            out[..., qq:qq + 4] = N(Q, x[..., ivr:ivr + 3])
+        else:
+            out[..., ivr:ivr + 3] = T(Q, x[..., qq:qq + 4])
+    return out
+
+
+# ---------------------------------------------------------------- backward formulas (reverse mode)
+
+def _mtv(A, y):
+    """Aᵀ y over leading axes"""
+    return torch.einsum("...ji,...j->...i", A, y)
+
+
+def _dynamics_vjp(h, op, call, kw, grads, outs):
+    ct = grads[0]
+    q, qd = call["q"], call["qd"]
+    third = "qdd" if op == "inverse_dynamics" else [n for n in call if n not in ("q", "qd", "f_ext")][0]
+    base = {k: v for k, v in kw.items()}
+    if "f_ext" in call:
+        base["f_ext"] = call["f_ext"].detach()
+    if op == "inverse_dynamics":
+        g = {k: v for k, v in base.items() if k in {a[0] for a in _SIGNATURES["inverse_dynamics_gradient"]}}
+        D = h._values("inverse_dynamics_gradient", dict(g, q=q, qd=qd, **({"qdd": call["qdd"]} if "qdd" in call
+                                                                           else {})))[0]
+        Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
+        D3 = h._values("crba", {"q": q})[0]
+    else:
+        g = {k: v for k, v in base.items() if k in {a[0] for a in _SIGNATURES["forward_dynamics_gradient"]}}
+        Dq, Dqd, _, D3 = h._values("forward_dynamics_gradient", dict(g, q=q, qd=qd, u=call[third]), outputs=0b1111)
+    out = {"q": _tangent_map(h, q, _mtv(Dq, ct), "pinv_T"), "qd": _mtv(Dqd, ct)}
+    if third in call:
+        out[third] = _mtv(D3, ct)
+    return out
+
+
+def _step_vjp(h, op, call, kw, grads, outs):
+    ct = grads[0]
+    nq, nv = h.nq, h.nv
+    grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
+    args = dict(kw, **{k: (v.detach() if k == "f_ext" else v) for k, v in call.items()})
+    x_next, AB = h._values(grad_op, args, outputs=0b11)
+    lam = torch.cat([_tangent_map(h, x_next[..., :nq], ct[..., :nq], "transpose"), ct[..., nq:]], -1)
+    g = _mtv(AB, lam)  # [g_q (tangent); g_qd; g_u]
+    q = call["q"] if op == "integrator" else call["x"][..., :nq]
+    gq = _tangent_map(h, q, g[..., :nv], "pinv_T")
+    if op == "integrator":
+        return {"q": gq, "qd": g[..., nv:2 * nv], "u": g[..., 2 * nv:]}
+    return {"x": torch.cat([gq, g[..., nv:2 * nv]], -1), "u": g[..., 2 * nv:]}
+
+
+_RULES = {"inverse_dynamics": _dynamics_vjp, "forward_dynamics": _dynamics_vjp, "aba": _dynamics_vjp,
+          "integrator": _step_vjp, "plant_step": _step_vjp}

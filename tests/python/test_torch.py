@@ -1,0 +1,173 @@
+"""rbdkit.torch: the custom operator against the NumPy handle (the same
+engine: bit for bit), leading batch shapes, torch.autograd.gradcheck in
+float64, the backward formulas against central differences of the NumPy path
+on every robot family (in the tangent space for quaternion coordinates),
+torch.compile without graph breaks, and the errors."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch") if os.environ.get("CI") != "true" else __import__("torch")
+
+import rbdkit  # noqa: E402
+import rbdkit.torch as rt  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+URDF = os.path.join(ROOT, "tests", "urdf")
+SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
+
+
+def load(name, floating):
+    if name in rbdkit.robots.names():
+        return rbdkit.robots.load(name, floating_base=floating)
+    return rbdkit.Model.from_urdf(os.path.join(URDF, name + ".urdf"), floating_base=floating)
+
+
+_HANDLES = {}
+
+
+def handle(name, floating, dtype="float64"):
+    key = (name, floating, dtype)
+    if key not in _HANDLES:
+        _HANDLES[key] = rt.Handle(load(name, floating), dtype=dtype, threads=1)
+    return _HANDLES[key]
+
+
+def states(h, B, seed=0):
+    rng = np.random.default_rng(seed)
+    q = np.stack([h.numpy.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
+    return q, rng.uniform(-1, 1, (B, h.nv)), rng.uniform(-1, 1, (B, h.nv))
+
+
+def tensors(*arrays, grad=True):
+    return [torch.tensor(a, requires_grad=grad) for a in arrays]
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("atlas", True)])
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_values_equal_the_numpy_handle(name, floating, dtype):
+    h = handle(name, floating, dtype)
+    q, qd, u = (a.astype(dtype) for a in states(h, 4))
+    x = np.concatenate([q, qd], -1)
+    frame = h.model.frame_names[len(h.model.frame_names) // 2]
+    for op, args, kw in [("inverse_dynamics", (q, qd, u), {}), ("inverse_dynamics", (q, qd), {"gravity": -2.0}),
+                         ("forward_dynamics_gradient", (q, qd, u), {}), ("crba", (q,), {}),
+                         ("integrator", (q, qd, u, 0.01, "rk4"), {}), ("plant_step", (x, u, 0.01), {}),
+                         ("frame_jacobian", (q, frame), {}), ("idsva_so", (q, qd, u), {}),
+                         ("end_effector_pose", (q,), {})]:
+        want = getattr(h.numpy, op)(*args, **kw)
+        targs = [torch.from_numpy(a) if isinstance(a, np.ndarray) else a for a in args]
+        got = getattr(h, op)(*targs, **kw)
+        want, got = (list(r) if isinstance(r, tuple) else [r] for r in (want, got))
+        assert len(want) == len(got), op
+        for w, g in zip(want, got):
+            assert g.dtype == getattr(torch, dtype), op
+            np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
+
+
+def test_leading_batch_shapes_and_broadcasting():
+    h = handle("hyq", True)
+    q, qd, u = states(h, 6)
+    out = h.aba(torch.tensor(q).reshape(2, 3, -1), torch.tensor(qd).reshape(2, 3, -1), torch.tensor(u).reshape(2, 3, -1))
+    assert out.shape == (2, 3, h.nv)
+    np.testing.assert_array_equal(out.reshape(6, -1).numpy(), h.numpy.aba(q, qd, u))
+    out = h.aba(torch.tensor(q[0]), torch.tensor(qd), torch.tensor(u))
+    np.testing.assert_array_equal(out.numpy(), h.numpy.aba(np.tile(q[0], (6, 1)), qd, u))
+    # a broadcast input's gradient is summed over the batch, as for any expanded tensor
+    q0 = torch.tensor(q[0], requires_grad=True)
+    h.aba(q0, torch.tensor(qd), torch.tensor(u)).sum().backward()
+    assert q0.grad.shape == (h.nq,)
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("planar", False), ("helical", False), ("mimic", False)])
+def test_gradcheck(name, floating):
+    h = handle(name, floating)
+    q, qd, u = tensors(*states(h, 2, seed=1))
+    for op in ("inverse_dynamics", "forward_dynamics", "aba"):
+        assert torch.autograd.gradcheck(lambda q, qd, u: getattr(h, op)(q, qd, u), (q, qd, u)), op
+    for scheme in SCHEMES:
+        assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
+    x = torch.cat([q, qd], -1).detach().requires_grad_()
+    assert torch.autograd.gradcheck(lambda x, u: h.plant_step(x, u, 0.01, "rk4"), (x, u))
+
+
+def central_difference(f, x, eps=1e-5, step=None, n=None):
+    step = step or (lambda x, d: x + d)
+    n = n or x.shape[-1]
+    return np.stack([(f(step(x, eps * e)) - f(step(x, -eps * e))) / (2 * eps) for e in np.eye(n)], -1)
+
+
+def rel(a, b):
+    a = a.detach().numpy() if isinstance(a, torch.Tensor) else np.asarray(a)
+    return np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
+def test_quaternion_models_against_central_differences(name, floating):
+    h = handle(name, floating)
+    q, qd, u = (a[0] for a in states(h, 1, seed=2))
+    w = np.random.default_rng(3).standard_normal(h.nv)
+    manifold = {"step": h.numpy.rbd.integrate, "n": h.nv}
+    for op in ("inverse_dynamics", "forward_dynamics", "aba"):
+        tq, tqd, tu = tensors(q, qd, u)
+        (getattr(h, op)(tq, tqd, tu) @ torch.tensor(w)).backward()
+        f = getattr(h.numpy, op)
+        assert rel(h.tangent_gradient(tq.detach(), tq.grad), w @ central_difference(lambda z: f(z, qd, u), q,
+                                                                                   **manifold)) < 1e-6, op
+        assert rel(tqd.grad, w @ central_difference(lambda z: f(q, z, u), qd)) < 1e-6, op
+        assert rel(tu.grad, w @ central_difference(lambda z: f(q, qd, z), u)) < 1e-6, op
+    for scheme in ("euler", "rk4"):
+        tq, tqd, tu = tensors(q, qd, u)
+        wx = np.random.default_rng(4).standard_normal(h.nq + h.nv)
+        (h.integrator(tq, tqd, tu, 0.01, scheme) @ torch.tensor(wx)).backward()
+        f = lambda q, qd, u: wx @ h.numpy.integrator(q, qd, u, 0.01, scheme)  # noqa: E731
+        assert rel(h.tangent_gradient(tq.detach(), tq.grad), central_difference(lambda z: f(z, qd, u), q,
+                                                                               **manifold)) < 1e-6, scheme
+        assert rel(tu.grad, central_difference(lambda z: f(q, qd, z), u)) < 1e-6, scheme
+
+
+def test_torch_compile_traces_without_graph_breaks():
+    h = handle("iiwa", False)
+    q, qd, u = tensors(*states(h, 3))
+    f = torch.compile(lambda q, qd, u: (h.aba(q, qd, u) ** 2).sum() + h.integrator(q, qd, u, 0.01, "rk4").sum(),
+                      fullgraph=True, backend="aot_eager")
+    y = f(q, qd, u)
+    y.backward()
+    q2, qd2, u2 = tensors(*states(h, 3))
+    y2 = (h.aba(q2, qd2, u2) ** 2).sum() + h.integrator(q2, qd2, u2, 0.01, "rk4").sum()
+    y2.backward()
+    assert torch.allclose(y, y2, rtol=1e-14, atol=0)
+    for a, b in ((q, q2), (qd, qd2), (u, u2)):
+        assert torch.allclose(a.grad, b.grad, rtol=1e-12, atol=1e-12)
+
+
+def test_errors_are_clear():
+    h = handle("iiwa", False)
+    q, qd, u = tensors(*states(h, 1))
+    with pytest.raises(RuntimeError, match="crba computes values only"):
+        h.crba(q).sum().backward()
+    with pytest.raises(NotImplementedError, match="f_ext"):
+        h.aba(q, qd, u, f_ext=torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True))
+    with pytest.raises(ValueError, match=r"qd: expected shape \(\.\.\., 7\)"):
+        h.aba(q, qd[..., :3], u)
+    with pytest.raises(ValueError, match="integrator_type"):
+        h.integrator(q, qd, u, 0.01, "rk5")
+    bad = q.detach().clone()
+    bad[0, 1] = float("nan")
+    with pytest.raises(ValueError, match="q"):
+        h.crba(bad)
+    with pytest.raises(ValueError, match="not built with it"):
+        rt.Handle(h.model, algorithms=["inverse_dynamics"]).minv(q)
+
+
+def test_rbdkit_imports_without_torch():
+    code = ("import sys; sys.modules['torch'] = None\n"
+            "import rbdkit\n"
+            "try:\n    import rbdkit.torch\nexcept ImportError as e:\n    print('ImportError:', e)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
+    assert r.returncode == 0, r.stderr
+    assert "ImportError: rbdkit.torch needs PyTorch: pip install torch" in r.stdout
