@@ -17,6 +17,8 @@ mkdir -p build
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore PIP_DISABLE_PIP_VERSION_CHECK=1 \
   "$PY" -m pip install -q -r requirements-frameworks.txt >build/frameworks-install.log 2>&1 &
 frameworks_pid=$!
+# (a failure before the wait below must not leave it writing to site-packages)
+trap 'kill "$frameworks_pid" 2>/dev/null || true' EXIT
 
 # ---- C++: library with the CUDA backend's real kernels (nvcc), GoogleTest
 # suite (the CUDA backend in interpret mode included), find_package consumer.
@@ -63,6 +65,7 @@ if ! wait "$frameworks_pid"; then
   echo "test: installing JAX and PyTorch (requirements-frameworks.txt) failed" >&2
   exit 1
 fi
+trap - EXIT
 echo "building the Python package (pip install .) ..."
 # (linked to build/cpp's librbdkit.a: the library is not compiled a second time)
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation . \

@@ -65,6 +65,10 @@ from . import _core
 from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
+# every handle made, for the life of the process: a compiled XLA call holds the C++ handle's address,
+# and may run after the Python handle is gone (a jitted function traced with it, a call dispatched
+# asynchronously); handles are few and long-lived, so none is ever freed
+_KEEP = []
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _registered = False
 
@@ -76,8 +80,9 @@ def _register():
         return
     handlers = _core.jax_ffi_handlers()
     if handlers is None:
-        raise ImportError("rbdkit.jax: this rbdkit build has no XLA FFI handler (it was built without JAX "
-                          "installed): pip install 'jax[cpu]', then reinstall rbdkit")
+        raise ImportError("rbdkit.jax: this rbdkit build has no XLA FFI handler (JAX was not importable when it "
+                          "was built): pip install 'jax[cpu]', then reinstall rbdkit with JAX visible to the build "
+                          "(pip install --no-build-isolation ., or ./test.sh)")
     for platform, capsule in handlers.items():
         jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
     _registered = True
@@ -138,6 +143,7 @@ class Handle:
         self.output_convention = self.numpy.output_convention
         self._core = self.numpy._core
         self._address = np.int64(self._core.address)
+        _KEEP.append(self.numpy)
         self._quats = _quaternion_blocks(self.model)
 
     # ---- what the handle has
@@ -449,7 +455,9 @@ def _step_rule(h, op, args, kwargs):
         _check_convention(h, op, call)
         x_next, AB = h._values(grad_op, (), call, outputs=0b11)
         nq, nv = h.nq, h.nv
-        t = {n: _dense(tn, call[n]) for n, tn in zip(names, tangents)}
+        batch = AB.shape[:-2]  # the call's batch shape: every tangent broadcast to it
+        t = {n: jnp.broadcast_to(_dense(tn, call[n]), batch + jnp.shape(call[n])[-1:]) for n, tn in zip(names, tangents)
+             if n != "f_ext"}
         if op == "integrator":
             q, tq, tqd = call["q"], t["q"], t["qd"]
         else:

@@ -21,8 +21,6 @@ along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
 other operations compute values; a backward pass through one raises.
 """
 
-import weakref
-
 import numpy as np
 
 try:
@@ -35,7 +33,9 @@ from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
-_HANDLES = weakref.WeakValueDictionary()  # a C++ handle's address -> its rbdkit.torch.Handle (for backward)
+# a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
+# torch.compile's) holds the address and may run after the Python handle is gone; handles are few
+_HANDLES = {}
 
 _DERIVATIVE_ALGORITHMS = {
     "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
@@ -48,17 +48,23 @@ _DERIVATIVE_ALGORITHMS = {
 
 # ---------------------------------------------------------------- the custom operator
 
-@torch.library.custom_op("rbdkit::call", mutates_args=())
+@torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
 def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
           choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
           out_ranks: list[int]) -> list[torch.Tensor]:
     """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
     returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
+    dtype = _HANDLES[handle].dtype
+    for x in xs:
+        if x.dtype != dtype or x.device.type != "cpu":
+            raise TypeError(f"rbdkit::call: expected CPU tensors of the handle's dtype {dtype}, got {x.dtype} on "
+                            f"{x.device}")
     xs = [x.contiguous() for x in xs]
-    dtype = xs[0].dtype if xs else torch.float64
     outs = [torch.empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
+    B = int(np.prod(batch)) if len(batch) else -1
     _core.run_raw(handle, op, slots, [x.data_ptr() for x in xs], [x.numel() for x in xs], outputs,
-                  [o.data_ptr() for o in outs], reals, choices, ee)
+                  [o.data_ptr() for o in outs], [o.numel() for o in outs], reals, choices, ee, B,
+                  torch.finfo(dtype).bits // 8)
     return outs
 
 
@@ -81,6 +87,7 @@ def _setup_context(ctx, inputs, output):
     ctx.save_for_backward(*xs, *output)
     ctx.n_in = len(xs)
     ctx.call = (handle, op, list(slots), list(outputs), list(reals), list(choices), list(ee))
+    ctx.handle = _HANDLES.get(handle)  # the handle the backward formulas use
     # backward returns the inputs' structure: None for each parameter, [] for an empty list
     ctx.rest = [[] if isinstance(a, (list, tuple)) and len(a) == 0 else None for a in inputs[1:]]
 
@@ -89,7 +96,7 @@ def _backward(ctx, grads):
     saved = ctx.saved_tensors
     xs, outs = list(saved[:ctx.n_in]), list(saved[ctx.n_in:])
     handle, op, slots, outputs, reals, choices, ee = ctx.call
-    h = _HANDLES.get(handle)
+    h = ctx.handle
     name = _NAMES[op]
     rule = _RULES.get(name)
     if h is None or rule is None:

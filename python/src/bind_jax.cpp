@@ -36,18 +36,23 @@
 namespace ops = rbd::ops;
 
 // one call of a registered operation of handle h on raw row-major arrays in
-// its dtype: ins[j] (counts[j] values) is argument slots[j], outs[j] is output
-// outputs[j]; reals and choices per argument; ee the end effectors' bodies.
-// B is the first array's samples (every array must hold as many). Returns
-// "" or the error (invalid: a bad argument rather than a failed computation).
-// The XLA FFI handler (rbdkit.jax) and rbdkit.torch's kernel call it.
+// its dtype: ins[j] (in_counts[j] values) is argument slots[j], outs[j]
+// (out_counts[j] values) is output outputs[j]; reals and choices per
+// argument; ee the end effectors' bodies. B: the samples (-1: the first
+// array's; every array must hold B, every output B of its shape).
+// value_bytes: the arrays' element size (the handle's dtype's). Returns "" or
+// the error (invalid: a bad argument rather than a failed computation). The
+// XLA FFI handler (rbdkit.jax) and rbdkit.torch's kernel call it.
 std::string rbdkit_run_raw(rbd::Handle* h, int64_t op_id, const int64_t* slots, const void* const* ins,
-                           const long* counts, size_t n_in, const int64_t* outputs, void* const* outs, size_t n_out,
-                           const double* reals, size_t n_reals, const int64_t* choices, size_t n_choices,
-                           const int64_t* ee, size_t n_ee, bool& invalid) {
+                           const long* in_counts, size_t n_in, const int64_t* outputs, void* const* outs,
+                           const long* out_counts, size_t n_out, const double* reals, size_t n_reals,
+                           const int64_t* choices, size_t n_choices, const int64_t* ee, size_t n_ee, long B,
+                           size_t value_bytes, bool& invalid) {
   invalid = true;
   if (!h || op_id < 0 || op_id >= static_cast<int64_t>(ops::op_table().size()) || !h->has_op(static_cast<int>(op_id)))
     return "rbdkit: no such operation on this handle";
+  if (value_bytes != (h->dtype() == "float32" ? sizeof(float) : sizeof(double)))
+    return "rbdkit: the arrays are not in the handle's dtype, " + h->dtype();
   const ops::OpSpec& op = *ops::op_table()[op_id].spec;
   const rbd::Model& m = h->model();
   if (n_reals != size_t(op.n_args) || n_choices != size_t(op.n_args) || n_in > size_t(op.n_args) ||
@@ -58,28 +63,29 @@ std::string rbdkit_run_raw(rbd::Handle* h, int64_t op_id, const int64_t* slots, 
   c.ee = bodies.empty() ? nullptr : bodies.data();
   c.n_ee = static_cast<int>(bodies.size());
   for (int k = 0; k < op.n_args; ++k) c.real[k] = reals[k], c.choice[k] = static_cast<int>(choices[k]);
-  long B = -1;
   for (size_t j = 0; j < n_in; ++j) {
     const int k = static_cast<int>(slots[j]);
     if (k < 0 || k >= op.n_args) return std::string(op.name) + ": bad argument slot";
     const long w = ops::arg_values(op.args[k], m, c.n_ee);
-    if (w <= 0 || counts[j] % w != 0)
-      return std::string(op.args[k].name) + ": " + std::to_string(counts[j]) +
-             " values are not a whole number of samples of " + std::to_string(w);
-    if (B >= 0 && counts[j] / w != B)
-      return std::string(op.args[k].name) + ": " + std::to_string(counts[j] / w) + " samples, where the call has " +
-             std::to_string(B);
-    B = counts[j] / w;
+    // (an array of no values per sample, q of a model without joints, says nothing of B)
+    if (w > 0 && B < 0 && in_counts[j] % w == 0) B = in_counts[j] / w;
+    if (w == 0 ? in_counts[j] != 0 : in_counts[j] != B * w)
+      return std::string(op.args[k].name) + ": " + std::to_string(in_counts[j]) + " values, where " +
+             std::to_string(B) + " samples of " + std::to_string(w) + " were expected";
     c.in[k] = ins[j];
     c.batched[k] = true;
   }
+  if (B < 0) B = 1;
   for (size_t j = 0; j < n_out; ++j) {
     const int o = static_cast<int>(outputs[j]);
     if (o < 0 || o >= op.n_out) return std::string(op.name) + ": bad output slot";
+    if (out_counts[j] != B * ops::out_values(op.out[o], m, c.n_ee))
+      return std::string(op.out[o].name) + ": the output holds " + std::to_string(out_counts[j]) + " values, not " +
+             std::to_string(B) + " samples of " + std::to_string(ops::out_values(op.out[o], m, c.n_ee));
     c.out[o] = outs[j];
   }
   if (B == 0) return "";  // an empty batch
-  c.B = B < 0 ? 1 : B;
+  c.B = B;
   try {
     h->run(static_cast<int>(op_id), c);
   } catch (const std::invalid_argument& e) {
@@ -102,9 +108,12 @@ ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t hand
                   ffi::Span<const int64_t> slots, ffi::Span<const int64_t> outputs, ffi::Span<const double> reals,
                   ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee) {
   rbd::Handle* h = reinterpret_cast<rbd::Handle*>(handle);
-  const ffi::DataType want = h && h->dtype() == "float32" ? ffi::DataType::F32 : ffi::DataType::F64;
+  if (!h) return ffi::Error::InvalidArgument("rbdkit_op: no handle");
+  const ffi::DataType want = h->dtype() == "float32" ? ffi::DataType::F32 : ffi::DataType::F64;
+  if (slots.size() != args.size() || outputs.size() != rets.size())
+    return ffi::Error::InvalidArgument("rbdkit_op: the arrays and their slots differ in number");
   std::vector<const void*> ins(args.size());
-  std::vector<long> counts(args.size());
+  std::vector<long> in_counts(args.size()), out_counts(rets.size());
   std::vector<void*> outs(rets.size());
   for (size_t j = 0; j < args.size(); ++j) {
     ffi::ErrorOr<ffi::AnyBuffer> buf = args.get<ffi::AnyBuffer>(j);
@@ -112,18 +121,21 @@ ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t hand
     if (buf->element_type() != want)
       return ffi::Error::InvalidArgument("rbdkit_op: an array is not in the handle's dtype, " + h->dtype());
     ins[j] = buf->untyped_data();
-    counts[j] = static_cast<long>(buf->element_count());
+    in_counts[j] = static_cast<long>(buf->element_count());
   }
   for (size_t j = 0; j < rets.size(); ++j) {
     ffi::ErrorOr<ffi::Result<ffi::AnyBuffer>> buf = rets.get<ffi::AnyBuffer>(j);
     if (buf.has_error()) return buf.error();
+    if ((*buf)->element_type() != want)
+      return ffi::Error::InvalidArgument("rbdkit_op: a result is not in the handle's dtype, " + h->dtype());
     outs[j] = (*buf)->untyped_data();
+    out_counts[j] = static_cast<long>((*buf)->element_count());
   }
   bool invalid = false;
-  const std::string err =
-      rbdkit_run_raw(h, op_id, slots.begin(), ins.data(), counts.data(), ins.size(), outputs.begin(), outs.data(),
-                     outs.size(), reals.begin(), reals.size(), choices.begin(), choices.size(), ee.begin(), ee.size(),
-                     invalid);
+  const std::string err = rbdkit_run_raw(
+      h, op_id, slots.begin(), ins.data(), in_counts.data(), ins.size(), outputs.begin(), outs.data(),
+      out_counts.data(), outs.size(), reals.begin(), reals.size(), choices.begin(), choices.size(), ee.begin(),
+      ee.size(), -1, want == ffi::DataType::F32 ? sizeof(float) : sizeof(double), invalid);
   if (err.empty()) return ffi::Error::Success();
   return invalid ? ffi::Error::InvalidArgument(err) : ffi::Error::Internal(err);
 }
@@ -152,9 +164,11 @@ void bind_jax(nb::module_& m) {
   m.def("run_raw", [](uintptr_t handle, int64_t op, const std::vector<int64_t>& slots,
                       const std::vector<uintptr_t>& ins, const std::vector<long>& counts,
                       const std::vector<int64_t>& outputs, const std::vector<uintptr_t>& outs,
-                      const std::vector<double>& reals, const std::vector<int64_t>& choices,
-                      const std::vector<int64_t>& ee) {
-    if (slots.size() != ins.size() || counts.size() != ins.size() || outputs.size() != outs.size())
+                      const std::vector<long>& out_counts, const std::vector<double>& reals,
+                      const std::vector<int64_t>& choices, const std::vector<int64_t>& ee, long B,
+                      size_t value_bytes) {
+    if (slots.size() != ins.size() || counts.size() != ins.size() || outputs.size() != outs.size() ||
+        out_counts.size() != outs.size())
       throw nb::value_error("run_raw: the arrays and their slots differ in number");
     std::vector<const void*> in_p(ins.size());
     std::vector<void*> out_p(outs.size());
@@ -165,14 +179,16 @@ void bind_jax(nb::module_& m) {
     {
       nb::gil_scoped_release nogil;
       err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p.data(), counts.data(),
-                           in_p.size(), outputs.data(), out_p.data(), out_p.size(), reals.data(), reals.size(),
-                           choices.data(), choices.size(), ee.data(), ee.size(), invalid);
+                           in_p.size(), outputs.data(), out_p.data(), out_counts.data(), out_p.size(), reals.data(),
+                           reals.size(), choices.data(), choices.size(), ee.data(), ee.size(), B, value_bytes,
+                           invalid);
     }
     if (!err.empty()) {
       if (invalid) throw nb::value_error(err.c_str());
       throw std::runtime_error(err);
     }
-  }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "reals"_a, "choices"_a, "ee"_a);
+  }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "out_counts"_a, "reals"_a,
+     "choices"_a, "ee"_a, "B"_a, "value_bytes"_a);
 
   // {platform: PyCapsule of the XLA FFI handler} for jax.ffi.register_ffi_target; None in a build
   // without jaxlib's headers

@@ -171,3 +171,11 @@ def test_rbdkit_imports_without_torch():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
     assert r.returncode == 0, r.stderr
     assert "ImportError: rbdkit.torch needs PyTorch: pip install torch" in r.stdout
+
+
+def test_torch_distributed_shards_equal_the_unsharded_call():
+    script = os.path.join(ROOT, "examples", "torch_distributed.py")
+    r = subprocess.run([sys.executable, script, "--world", "2", "--batch", "16"], capture_output=True, text=True,
+                       cwd="/", timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "all-gathered shards equal the unsharded call" in r.stdout
