@@ -1,14 +1,16 @@
 """What a framework call costs on top of the NumPy handle's (issue 15, point 3):
-one jitted rbdkit.jax call against the same operation through rbdkit.Handle,
-in the same run, on the same machine, at B knot points on the CPU.
+one jitted rbdkit.jax call and one rbdkit.torch call against the same
+operation through rbdkit.Handle, in the same run, on the same machine, at B
+knot points on the CPU.
 
     python3 bench/frameworks.py [--batch 16] [--robots iiwa hyq_floating] [--quick]
 
 For each operation: µs per call of the NumPy handle, of the jitted JAX call
-(inputs already JAX arrays; block_until_ready), the difference, and the same
-for a jitted gradient (reverse mode) of a scalar of the result against the
-NumPy handle computing the Jacobians that gradient needs. The best of several
-repeats. PyTorch (rbdkit.torch) is not measured yet: it does not exist yet.
+(inputs already JAX arrays; block_until_ready) and of the PyTorch call (CPU
+tensors), and the differences; "forward_dynamics_grad" is a gradient
+(reverse mode) of a scalar of the result against the NumPy handle computing
+the Jacobians that gradient needs (a backward pass in PyTorch). The best of
+several repeats.
 """
 
 import argparse
@@ -39,6 +41,23 @@ def best_us(f, min_time, repeats):
             f()
         times.append((time.perf_counter() - t) / n)
     return 1e6 * min(times)
+
+
+def torch_calls(torch, ht, X):
+    """{op: PyTorch call} on the batch X"""
+    q, qd, u = (torch.from_numpy(a) for a in X)
+    ug = u.clone().requires_grad_()
+
+    def grad():
+        ug.grad = None
+        (ht.forward_dynamics(q, qd, ug) ** 2).sum().backward()
+    return {
+        "inverse_dynamics": lambda: ht.inverse_dynamics(q, qd, u),
+        "forward_dynamics": lambda: ht.forward_dynamics(q, qd, u),
+        "crba": lambda: ht.crba(q),
+        "integrator_rk4": lambda: ht.integrator(q, qd, u, 0.01, "rk4"),
+        "forward_dynamics_grad": grad,
+    }
 
 
 def calls(jax, h, X):
@@ -72,25 +91,30 @@ def main(argv=None):
     o = p.parse_args(argv)
     try:
         import jax
+        import torch
         import rbdkit.jax as rj
+        import rbdkit.torch as rt
     except ImportError as e:
         raise SystemExit(f"frameworks: {e}")
     jax.config.update("jax_enable_x64", True)
     min_time, repeats = (0.01, 2) if o.quick else (0.2, 7)
     rows = []
     print(f"B = {o.batch}, threads = {o.threads}, float64, CPU; µs per call (best of {repeats})")
-    print(f"{'robot':14s} {'operation':22s} {'numpy':>8s} {'jax jit':>8s} {'+jax':>7s}")
+    print(f"{'robot':14s} {'operation':22s} {'numpy':>8s} {'jax jit':>8s} {'+jax':>7s} {'torch':>8s} {'+torch':>7s}")
     for label in o.robots:
         name, floating = label.split("_")[0], label.endswith("_floating")
         m = rbdkit.robots.load(name, floating_base=floating)
         h = rj.Handle(m, threads=o.threads)
+        ht = rt.Handle(m, threads=o.threads)
         rng = np.random.default_rng(0)
         X = (np.stack([m.random_configuration(rng) for _ in range(o.batch)]),
              rng.uniform(-1, 1, (o.batch, m.nv)), rng.uniform(-1, 1, (o.batch, m.nv)))
+        tc = torch_calls(torch, ht, X)
         for op, (f_np, f_jax) in calls(jax, h, X).items():
-            t_np, t_jax = best_us(f_np, min_time, repeats), best_us(f_jax, min_time, repeats)
-            rows.append({"robot": label, "op": op, "numpy_us": t_np, "jax_us": t_jax, "jax_extra_us": t_jax - t_np})
-            print(f"{label:14s} {op:22s} {t_np:8.1f} {t_jax:8.1f} {t_jax - t_np:+7.1f}")
+            t_np, t_jax, t_t = (best_us(f, min_time, repeats) for f in (f_np, f_jax, tc[op]))
+            rows.append({"robot": label, "op": op, "numpy_us": t_np, "jax_us": t_jax, "jax_extra_us": t_jax - t_np,
+                         "torch_us": t_t, "torch_extra_us": t_t - t_np})
+            print(f"{label:14s} {op:22s} {t_np:8.1f} {t_jax:8.1f} {t_jax - t_np:+7.1f} {t_t:8.1f} {t_t - t_np:+7.1f}")
     if o.out:
         with open(o.out, "w") as f:
             json.dump({"batch": o.batch, "threads": o.threads, "rows": rows}, f, indent=1)

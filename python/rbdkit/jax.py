@@ -52,6 +52,8 @@ coordinate gradient is 2 Q(q) g_ω: the tangent gradient is recovered as
 g = Eᵀ (JAX's gradient), `Handle.tangent_gradient` below.
 """
 
+import atexit
+
 import numpy as np
 
 try:
@@ -69,6 +71,7 @@ _TARGET = "rbdkit_op"
 # and may run after the Python handle is gone (a jitted function traced with it, a call dispatched
 # asynchronously); handles are few and long-lived, so none is ever freed
 _KEEP = []
+atexit.register(_KEEP.clear)  # released at exit, before the extension's teardown
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _registered = False
 

@@ -21,6 +21,9 @@ along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
 other operations compute values; a backward pass through one raises.
 """
 
+import atexit
+import math
+
 import numpy as np
 
 try:
@@ -36,6 +39,7 @@ _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by oper
 # a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
+atexit.register(_HANDLES.clear)  # released at exit, before the extension's teardown
 
 _DERIVATIVE_ALGORITHMS = {
     "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
@@ -48,10 +52,7 @@ _DERIVATIVE_ALGORITHMS = {
 
 # ---------------------------------------------------------------- the custom operator
 
-@torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
-def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
-          choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
-          out_ranks: list[int]) -> list[torch.Tensor]:
+def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks):
     """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
     returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
     dtype = _HANDLES[handle].dtype
@@ -61,11 +62,19 @@ def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], output
                             f"{x.device}")
     xs = [x.contiguous() for x in xs]
     outs = [torch.empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
-    B = int(np.prod(batch)) if len(batch) else -1
+    B = math.prod(batch) if len(batch) else -1
     _core.run_raw(handle, op, slots, [x.data_ptr() for x in xs], [x.numel() for x in xs], outputs,
                   [o.data_ptr() for o in outs], [o.numel() for o in outs], reals, choices, ee, B,
-                  torch.finfo(dtype).bits // 8)
+                  8 if dtype == torch.float64 else 4)
     return outs
+
+
+@torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
+def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
+          choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
+          out_ranks: list[int]) -> list[torch.Tensor]:
+    """the custom operator: _kernel, with the fake kernel and the autograd formulas below"""
+    return _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks)
 
 
 @_call.register_fake
@@ -184,13 +193,18 @@ class Handle:
                 raise ValueError(f"{name}: expected shape (..., {', '.join(map(str, shape))}) (any leading batch "
                                  f"axes), got {tuple(x.shape)}")
             xs.append(x)
-        batch = torch.broadcast_shapes(*[x.shape[:x.dim() - len(s)] for x, (_, _, s) in zip(xs, arrays)]) \
-            if xs else torch.Size()
-        xs = [x.expand(tuple(batch) + tuple(s)) for x, (_, _, s) in zip(xs, arrays)]
+        leading = [tuple(x.shape[:x.dim() - len(s)]) for x, (_, _, s) in zip(xs, arrays)]
+        batch = leading[0] if len(set(leading)) == 1 else tuple(np.broadcast_shapes(*leading)) if xs else ()
+        xs = [x if tuple(x.shape[:x.dim() - len(s)]) == batch else x.expand(batch + tuple(s))
+              for x, (_, _, s) in zip(xs, arrays)]
         flat = [d for _, s in outs for d in s]
-        res = _call(xs, self._address, op_id, [k for k, _, _ in arrays], [o for o, _ in outs], list(reals),
-                    list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs])
-        return list(res)
+        call = (xs, self._address, op_id, [k for k, _, _ in arrays], [o for o, _ in outs], list(reals),
+                list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs])
+        # the custom operator where autograd or torch.compile needs it; its kernel directly otherwise
+        # (the operator's Python dispatch costs about 90 µs a call)
+        if torch.compiler.is_compiling() or (torch.is_grad_enabled() and any(x.requires_grad for x in xs)):
+            return list(_call(*call))
+        return _kernel(*call)
 
     def _params(self, op, reals, choices, slots):
         """the parameters of a call (not its arrays) as keywords, from its reals and choices"""
