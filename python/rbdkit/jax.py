@@ -72,6 +72,7 @@ _TARGET = "rbdkit_op"
 # asynchronously); handles are few and long-lived, so none is ever freed
 _KEEP = []
 atexit.register(_KEEP.clear)  # released at exit, before the extension's teardown
+_core.disable_leak_warnings()  # (those handles are kept on purpose)
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _registered = False
 

@@ -40,6 +40,7 @@ _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by oper
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
 atexit.register(_HANDLES.clear)  # released at exit, before the extension's teardown
+_core.disable_leak_warnings()  # (those handles are kept on purpose)
 
 _DERIVATIVE_ALGORITHMS = {
     "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),

@@ -159,6 +159,10 @@ namespace nb = nanobind;
 using namespace nb::literals;
 
 void bind_jax(nb::module_& m) {
+  // rbdkit.jax and rbdkit.torch keep their handles for the life of the process (compiled calls hold
+  // their addresses), and the frameworks' caches may hold them past the atexit release: nanobind's
+  // leak report at exit would name them
+  m.def("disable_leak_warnings", [] { nb::set_leak_warnings(false); });
   // rbdkit.torch's kernel: run_raw on arrays given as addresses (data_ptr()) and value counts;
   // raises ValueError (a bad argument) or RuntimeError (a failed computation) with rbdkit's message
   m.def("run_raw", [](uintptr_t handle, int64_t op, const std::vector<int64_t>& slots,
