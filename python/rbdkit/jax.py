@@ -64,7 +64,9 @@ except ImportError as e:  # an optional dependency
                       "rbdkit.jax again") from e
 
 from . import _core
-from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
+from ._frameworks import (add_operation_methods, call_keywords, half_q, one_dof_coordinates, quaternion_joints,
+                          rotation, with_derivative_algorithms)
+from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
 # every handle made, for the life of the process: a compiled XLA call holds the C++ handle's address,
@@ -117,29 +119,14 @@ def _check_x64(dtype):
                          "True) before creating arrays), or use dtype='float32'")
 
 
-# the operations with a derivative rule, and the algorithms their rule calls
-_DERIVATIVE_ALGORITHMS = {
-    "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
-    "forward_dynamics": ("forward_dynamics_gradient",),
-    "aba": ("forward_dynamics_gradient",),
-    "integrator": ("integrator_gradient",),
-    "plant_step": ("integrator_gradient",),
-}
-
-
 class Handle:
     """A robot's operations as JAX functions (module doc). Attributes: model,
     numpy (the rbdkit.Handle that runs the calls), dtype, nq, nv, nb."""
 
     def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
         _register()
-        if algorithms is not None:
-            if isinstance(algorithms, str):
-                algorithms = [algorithms]
-            extra = [a for alg in list(algorithms) if isinstance(alg, str) and alg in ALGORITHMS
-                     for op in ALGORITHMS[alg][0] for a in _DERIVATIVE_ALGORITHMS.get(op, ())]
-            algorithms = list(algorithms) + [a for a in extra if a not in algorithms]
-        self.numpy = _NumpyHandle(model, algorithms, "cpu", dtype, threads, output_convention)
+        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), "cpu", dtype, threads,
+                                  output_convention)
         _check_x64(self.numpy.dtype)
         self.model = self.numpy.model
         self.dtype = self.numpy.dtype
@@ -148,7 +135,8 @@ class Handle:
         self._core = self.numpy._core
         self._address = np.int64(self._core.address)
         _KEEP.append(self.numpy)
-        self._quats = _quaternion_blocks(self.model)
+        self._quats = quaternion_joints(self.model)
+        self._vi, self._qi = (np.array(i, int) for i in one_dof_coordinates(self.model))
 
     # ---- what the handle has
     def available_operations(self):
@@ -208,24 +196,7 @@ class Handle:
         return f"<rbdkit.jax.Handle of {self.model!r}: dtype={self.dtype.name}>"
 
 
-def _operation_method(op):
-    ref = getattr(_NumpyHandle, op)
-
-    def method(self, *args, **kwargs):
-        if not self.numpy.has(op):
-            alg = OPERATION_ALGORITHM[op]
-            raise ValueError(f"{op}: this handle was not built with it; add '{alg}' to algorithms")
-        return self._call(op, args, kwargs)
-
-    method.__name__ = method.__qualname__ = op
-    method.__signature__ = getattr(ref, "__signature__", None)
-    method.__doc__ = ref.__doc__
-    return method
-
-
-for _op in OPERATION_ALGORITHM:
-    setattr(Handle, _op, _operation_method(_op))
-del _op
+add_operation_methods(Handle, "_call")
 
 
 # ---------------------------------------------------------------- a call's arrays
@@ -240,13 +211,7 @@ def _signature(op):
 def _bind(h, op, args, kwargs):
     """the call as keywords, and the names of its array arguments present (argument order)"""
     sig = [a[0] for a in _signature(op)]
-    if len(args) > len(sig):
-        raise TypeError(f"{op}() takes at most {len(sig)} arguments ({len(args)} given)")
-    kw = dict(zip(sig, args))
-    for name, v in kwargs.items():
-        if name in kw:
-            raise TypeError(f"{op}() got multiple values for argument '{name}'")
-        kw[name] = v
+    kw = call_keywords(op, sig, args, kwargs)
     _, arrays, _, _, _, _ = h._core.plan(op, (), kw)
     return kw, [sig[k] for k, _, _ in arrays]
 
@@ -275,45 +240,6 @@ def _values_only(h, op, args, kwargs):
 
 # ---------------------------------------------------------------- the coordinates' tangent maps
 
-def _quaternion_blocks(model):
-    """[(kind, q_index, v_index)] of the joints whose coordinates are not their tangent space:
-    free joints ("free": position then quaternion x y z w) and spherical ones ("ball")"""
-    blocks = []
-    for j in model.joints:
-        if j["type"] == "free":
-            blocks.append(("free", j["q_index"], j["v_index"]))
-        elif j["type"] == "spherical":
-            blocks.append(("ball", j["q_index"], j["v_index"]))
-    return blocks
-
-
-def _coordinate_index(h):
-    """for each tangent index of a one-coordinate joint, its coordinate: (v indices, q indices)"""
-    qi, vi = [], []
-    for j in h.model.joints:
-        if j["type"] not in ("free", "spherical") and j["nv"] == 1:
-            qi.append(j["q_index"])
-            vi.append(j["v_index"])
-    return np.array(vi, int), np.array(qi, int)
-
-
-def _rotation(quat):
-    """R (..., 3, 3) of unit quaternions (..., 4) in x y z w order"""
-    x, y, z, w = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
-    return jnp.stack([
-        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        jnp.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        jnp.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def _half_q(quat):
-    """½ Q(q) (..., 4, 3): ∂(q ⊗ (δ/2, 1))/∂δ for q = (v, w) in x y z w order: [w I + [v]x; -vᵀ] / 2"""
-    x, y, z, w = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
-    rows = [jnp.stack([w, -z, y], -1), jnp.stack([z, w, -x], -1), jnp.stack([-y, x, w], -1),
-            jnp.stack([-x, -y, -z], -1)]
-    return 0.5 * jnp.stack(rows, -2)
-
-
 def _assemble(pieces, n, batch, dtype):
     """the vector (..., n) whose entries `idx` are `values` (..., len(idx)) for each (idx, values) of
     pieces: a concatenation and a fixed permutation (a gather, which JAX can transpose; entries no
@@ -336,16 +262,16 @@ def _tangent_map(h, q, x, kind):
     batch = jnp.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     dtype = jnp.result_type(q, x)
     to_q = kind == "from_tangent"
-    vi, qi = _coordinate_index(h)
+    vi, qi = h._vi, h._qi
     pieces = [(list(qi if to_q else vi), x[..., vi if to_q else qi])] if len(vi) else []
     T = lambda A, y: jnp.einsum("...ji,...j->...i", A, y)  # Aᵀ y
     N = lambda A, y: jnp.einsum("...ij,...j->...i", A, y)  # A y
     rot_scale = {"to_tangent": 4.0, "from_tangent": 1.0, "transpose": 1.0}[kind]
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq  # the quaternion's first coordinate
-        Q = _half_q(q[..., qq:qq + 4])
+        Q = half_q(jnp, q[..., qq:qq + 4])
         if joint == "free":  # the position: E = R, E⁺ = Eᵀ = Rᵀ
-            R = _rotation(q[..., qq:qq + 4])
+            R = rotation(jnp, q[..., qq:qq + 4])
             if to_q:
                 pieces.append((list(range(iq, iq + 3)), N(R, x[..., iv:iv + 3])))
             else:

@@ -32,7 +32,9 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as _NumpyHandle
+from ._frameworks import (add_operation_methods, call_keywords, half_q, one_dof_coordinates, quaternion_joints,
+                          rotation, with_derivative_algorithms)
+from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
@@ -41,14 +43,6 @@ _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by oper
 _HANDLES = {}
 atexit.register(_HANDLES.clear)  # released at exit, before the extension's teardown
 _core.disable_leak_warnings()  # (those handles are kept on purpose)
-
-_DERIVATIVE_ALGORITHMS = {
-    "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
-    "forward_dynamics": ("forward_dynamics_gradient",),
-    "aba": ("forward_dynamics_gradient",),
-    "integrator": ("integrator_gradient",),
-    "plant_step": ("integrator_gradient",),
-}
 
 
 # ---------------------------------------------------------------- the custom operator
@@ -142,26 +136,18 @@ class Handle:
     rbdkit.Handle that runs the calls), dtype (a torch dtype), nq, nv, nb."""
 
     def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
-        if algorithms is not None:
-            if isinstance(algorithms, str):
-                algorithms = [algorithms]
-            extra = [a for alg in list(algorithms) if isinstance(alg, str) and alg in ALGORITHMS
-                     for op in ALGORITHMS[alg][0] for a in _DERIVATIVE_ALGORITHMS.get(op, ())]
-            algorithms = list(algorithms) + [a for a in extra if a not in algorithms]
         if isinstance(dtype, torch.dtype):
             dtype = str(dtype).replace("torch.", "")
-        self.numpy = _NumpyHandle(model, algorithms, "cpu", dtype, threads, output_convention)
+        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), "cpu", dtype, threads,
+                                  output_convention)
         self.model = self.numpy.model
         self.dtype = getattr(torch, self.numpy.dtype.name)
         self.nq, self.nv, self.nb = self.model.nq, self.model.nv, self.model.nb
         self.output_convention = self.numpy.output_convention
         self._core = self.numpy._core
         self._address = int(self._core.address)
-        self._quats = [(j["type"], j["q_index"], j["v_index"]) for j in self.model.joints
-                       if j["type"] in ("free", "spherical")]
-        one = [(j["v_index"], j["q_index"]) for j in self.model.joints
-               if j["type"] not in ("free", "spherical") and j["nv"] == 1]
-        self._vi, self._qi = [v for v, _ in one], [q for _, q in one]  # lists: constants under torch.compile
+        self._quats = quaternion_joints(self.model)
+        self._vi, self._qi = one_dof_coordinates(self.model)  # lists: constants under torch.compile
         _HANDLES[self._address] = self
 
     def available_operations(self):
@@ -224,14 +210,7 @@ class Handle:
         return kw
 
     def _method_call(self, op, args, kwargs):
-        sig = [a[0] for a in _SIGNATURES[op]]
-        if len(args) > len(sig):
-            raise TypeError(f"{op}() takes at most {len(sig)} arguments ({len(args)} given)")
-        kw = dict(zip(sig, args))
-        for name, v in kwargs.items():
-            if name in kw:
-                raise TypeError(f"{op}() got multiple values for argument '{name}'")
-            kw[name] = v
+        kw = call_keywords(op, [a[0] for a in _SIGNATURES[op]], args, kwargs)
         if op in _RULES and kw.get("output_convention", self.output_convention) == "mujoco" and self._quats \
                 and any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values()):
             raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
@@ -254,42 +233,10 @@ class Handle:
 _INTEGRATORS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
 
 
-def _operation_method(op):
-    ref = getattr(_NumpyHandle, op)
-
-    def method(self, *args, **kwargs):
-        if not self.numpy.has(op):
-            raise ValueError(f"{op}: this handle was not built with it; add '{OPERATION_ALGORITHM[op]}' to "
-                             f"algorithms")
-        return self._method_call(op, args, kwargs)
-
-    method.__name__ = method.__qualname__ = op
-    method.__signature__ = getattr(ref, "__signature__", None)
-    method.__doc__ = ref.__doc__
-    return method
-
-
-for _op in OPERATION_ALGORITHM:
-    setattr(Handle, _op, _operation_method(_op))
-del _op
+add_operation_methods(Handle, "_method_call")
 
 
 # ---------------------------------------------------------------- the coordinates' maps
-
-def _rotation(quat):
-    x, y, z, w = quat.unbind(-1)
-    return torch.stack([
-        torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        torch.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        torch.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def _half_q(quat):
-    """½ Q(q) (..., 4, 3) for q in x y z w order (rbdkit.jax._half_q)"""
-    x, y, z, w = quat.unbind(-1)
-    return 0.5 * torch.stack([torch.stack([w, -z, y], -1), torch.stack([z, w, -x], -1),
-                              torch.stack([-y, x, w], -1), torch.stack([-x, -y, -z], -1)], -2)
-
 
 def _tangent_map(h, q, x, kind):
     """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv)"""
@@ -303,10 +250,10 @@ def _tangent_map(h, q, x, kind):
     N = lambda A, y: torch.einsum("...ij,...j->...i", A, y)  # noqa: E731
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq
-        Q = _half_q(q[..., qq:qq + 4])
+        Q = half_q(torch, q[..., qq:qq + 4])
         ivr = iv + 3 if joint == "free" else iv
         if joint == "free":
-            R = _rotation(q[..., qq:qq + 4])
+            R = rotation(torch, q[..., qq:qq + 4])
             if to_q:
                 out[..., iq:iq + 3] = N(R, x[..., iv:iv + 3])
             else:

@@ -18,37 +18,13 @@ import rbdkit.jax as rj  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-URDF = os.path.join(ROOT, "tests", "urdf")
+from framework_cases import SCHEMES, Handles, central_difference, on_manifold, rel, states  # noqa: E402
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
 # spherical, helical, planar (prismatic and continuous) and mimic joints
 MODELS = [("iiwa", False), ("hyq", True), ("atlas", True), ("spherical", False), ("helical", True),
           ("planar", False), ("mimic", False)]
-SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
-
-
-def load(name, floating):
-    if name in rbdkit.robots.names():
-        return rbdkit.robots.load(name, floating_base=floating)
-    return rbdkit.Model.from_urdf(os.path.join(URDF, name + ".urdf"), floating_base=floating)
-
-
-_HANDLES = {}
-
-
-def handle(name, floating, dtype="float64"):
-    key = (name, floating, dtype)
-    if key not in _HANDLES:
-        _HANDLES[key] = rj.Handle(load(name, floating), dtype=dtype, threads=1)
-    return _HANDLES[key]
-
-
-def states(h, B, seed=0):
-    rng = np.random.default_rng(seed)
-    q = np.stack([h.numpy.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
-    qd, u = rng.uniform(-1, 1, (B, h.nv)), rng.uniform(-1, 1, (B, h.nv))
-    return q, qd, u
+handle = Handles(lambda model, dtype: rj.Handle(model, dtype=dtype, threads=1))
 
 
 # a representative call of every kind of argument: optional arrays (qdd,
@@ -140,23 +116,6 @@ def test_vmap_equals_the_batched_call():
     # a vmapped gradient
     g = jax.vmap(jax.grad(lambda u: jnp.sum(h.aba(q[0], qd[0], u) ** 2)))(u)
     assert g.shape == u.shape
-
-
-def central_difference(f, x, eps=1e-5, step=None, n=None):
-    """∂f/∂x (outputs x inputs) by central differences; step(x, dx) moves x (default x + dx) along
-    n directions (default x's size)"""
-    step = step or (lambda x, d: x + d)
-    n = n or x.shape[-1]
-    return np.stack([(f(step(x, eps * e)) - f(step(x, -eps * e))) / (2 * eps) for e in np.eye(n)], -1)
-
-
-def on_manifold(h):
-    """central differences in the tangent space at q: q ⊕ d"""
-    return {"step": h.numpy.rbd.integrate, "n": h.nv}
-
-
-def rel(a, b):
-    return np.max(np.abs(np.asarray(a) - b)) / max(1.0, np.max(np.abs(b)))
 
 
 @pytest.mark.parametrize("name,floating", MODELS)

@@ -16,31 +16,9 @@ torch = pytest.importorskip("torch") if os.environ.get("CI") != "true" else __im
 import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-URDF = os.path.join(ROOT, "tests", "urdf")
-SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
+from framework_cases import ROOT, SCHEMES, Handles, central_difference, rel, states  # noqa: E402
 
-
-def load(name, floating):
-    if name in rbdkit.robots.names():
-        return rbdkit.robots.load(name, floating_base=floating)
-    return rbdkit.Model.from_urdf(os.path.join(URDF, name + ".urdf"), floating_base=floating)
-
-
-_HANDLES = {}
-
-
-def handle(name, floating, dtype="float64"):
-    key = (name, floating, dtype)
-    if key not in _HANDLES:
-        _HANDLES[key] = rt.Handle(load(name, floating), dtype=dtype, threads=1)
-    return _HANDLES[key]
-
-
-def states(h, B, seed=0):
-    rng = np.random.default_rng(seed)
-    q = np.stack([h.numpy.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
-    return q, rng.uniform(-1, 1, (B, h.nv)), rng.uniform(-1, 1, (B, h.nv))
+handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
 
 def tensors(*arrays, grad=True):
@@ -93,17 +71,6 @@ def test_gradcheck(name, floating):
         assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
     x = torch.cat([q, qd], -1).detach().requires_grad_()
     assert torch.autograd.gradcheck(lambda x, u: h.plant_step(x, u, 0.01, "rk4"), (x, u))
-
-
-def central_difference(f, x, eps=1e-5, step=None, n=None):
-    step = step or (lambda x, d: x + d)
-    n = n or x.shape[-1]
-    return np.stack([(f(step(x, eps * e)) - f(step(x, -eps * e))) / (2 * eps) for e in np.eye(n)], -1)
-
-
-def rel(a, b):
-    a = a.detach().numpy() if isinstance(a, torch.Tensor) else np.asarray(a)
-    return np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])

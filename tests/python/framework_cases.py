@@ -1,0 +1,59 @@
+"""What tests/python/test_jax.py and test_torch.py share: the models of every
+robot family, one handle per (model, dtype) of a framework, random states on
+the manifold, central differences (in the tangent space for q) and a relative
+error."""
+
+import os
+
+import numpy as np
+
+import rbdkit
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+URDF = os.path.join(ROOT, "tests", "urdf")
+SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
+
+
+def load(name, floating):
+    if name in rbdkit.robots.names():
+        return rbdkit.robots.load(name, floating_base=floating)
+    return rbdkit.Model.from_urdf(os.path.join(URDF, name + ".urdf"), floating_base=floating)
+
+
+class Handles:
+    """one framework handle per (model, floating, dtype), made by `make(model, dtype)` on first use"""
+
+    def __init__(self, make):
+        self.make, self.cache = make, {}
+
+    def __call__(self, name, floating, dtype="float64"):
+        key = (name, floating, dtype)
+        if key not in self.cache:
+            self.cache[key] = self.make(load(name, floating), dtype)
+        return self.cache[key]
+
+
+def states(h, B, seed=0):
+    """B random (q, qd, u): q = neutral ⊕ uniform(-1, 1) tangent steps"""
+    rng = np.random.default_rng(seed)
+    q = np.stack([h.numpy.rbd.integrate(h.model.neutral(), rng.uniform(-1, 1, h.nv)) for _ in range(B)])
+    return q, rng.uniform(-1, 1, (B, h.nv)), rng.uniform(-1, 1, (B, h.nv))
+
+
+def central_difference(f, x, eps=1e-5, step=None, n=None):
+    """∂f/∂x (outputs x inputs) by central differences; step(x, dx) moves x (default x + dx) along
+    n directions (default x's size)"""
+    step = step or (lambda x, d: x + d)
+    n = n or x.shape[-1]
+    return np.stack([(f(step(x, eps * e)) - f(step(x, -eps * e))) / (2 * eps) for e in np.eye(n)], -1)
+
+
+def on_manifold(h):
+    """central differences in the tangent space at q: q ⊕ d"""
+    return {"step": h.numpy.rbd.integrate, "n": h.nv}
+
+
+def rel(a, b):
+    """max |a - b| relative to max(1, max |b|); a may be a JAX array or a PyTorch tensor"""
+    a = a.detach().numpy() if hasattr(a, "detach") else np.asarray(a)
+    return np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))
