@@ -173,10 +173,7 @@ class Handle:
         return out[0] if len(out) == 1 else tuple(out)
 
     def _call(self, op, args, kwargs):
-        rule = _RULES.get(op)
-        if rule is None:
-            return _values_only(self, op, args, kwargs)
-        return rule(self, op, args, kwargs)
+        return _custom_call(self, op, args, kwargs, _RULES.get(op, _no_derivative))
 
     # ---- the coordinates and the tangent space (module doc)
     def to_tangent(self, q, dq):
@@ -222,20 +219,25 @@ def _with(kw, names, arrays):
     return kw
 
 
-def _values_only(h, op, args, kwargs):
-    """an operation without a derivative rule: its values; differentiating it raises"""
+def _custom_call(h, op, args, kwargs, jvp_rule):
+    """op's values as a jax.custom_jvp function of the call's arrays (its parameters closed over);
+    jvp_rule(h, op, call, names, tangents) -> (out, dout): call is the whole call as keywords at the
+    primals, names the arrays' names, tangents theirs (symbolic zeros where not differentiated)"""
     kw, names = _bind(h, op, args, kwargs)
 
     @jax.custom_jvp
     def f(*arrays):
         return h._values(op, (), _with(kw, names, arrays))
 
-    def no_derivative(primals, tangents):
-        raise NotImplementedError(f"rbdkit.jax: {op} computes values only (it has no derivative rule); the "
-                                  f"differentiable operations are {', '.join(sorted(_RULES))}")
-
-    f.defjvp(no_derivative, symbolic_zeros=True)
+    f.defjvp(lambda primals, tangents: jvp_rule(h, op, _with(kw, names, primals), names, tangents),
+             symbolic_zeros=True)
     return f(*[kw[n] for n in names])
+
+
+def _no_derivative(h, op, call, names, tangents):
+    """the rule of an operation that computes values only"""
+    raise NotImplementedError(f"rbdkit.jax: {op} computes values only (it has no derivative rule); the "
+                              f"differentiable operations are {', '.join(sorted(_RULES))}")
 
 
 # ---------------------------------------------------------------- the coordinates' tangent maps
@@ -336,71 +338,49 @@ def _only(kw, op):
     return {k: v for k, v in kw.items() if k in names}
 
 
-def _dynamics_rule(h, op, args, kwargs):
+def _dynamics_jvp(h, op, call, names, tangents):
     """inverse_dynamics (q, qd, qdd -> tau) and forward_dynamics / aba (q, qd, u -> qdd)"""
-    kw, names = _bind(h, op, args, kwargs)
+    _check_fext(op, names, tangents)
+    _check_convention(h, op, call)
     third = "qdd" if op == "inverse_dynamics" else names[2]
-
-    @jax.custom_jvp
-    def f(*arrays):
-        return h._values(op, (), _with(kw, names, arrays))
-
-    def jvp(primals, tangents):
-        _check_fext(op, names, tangents)
-        call = _with(kw, names, primals)
-        _check_convention(h, op, call)
-        q, qd = call["q"], call["qd"]
-        if op == "inverse_dynamics":
-            out = h._values(op, (), call)
-            D = h._values("inverse_dynamics_gradient", (), _only(call, "inverse_dynamics_gradient"))
-            Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
-            D3 = h._values("crba", (), {"q": q})  # ∂τ/∂qdd = M
-        else:  # one call: ∂qdd/∂q, ∂qdd/∂qd, qdd and ∂qdd/∂u = M⁻¹
-            g = _only(call, "forward_dynamics_gradient")
-            g["u"] = call[third]
-            Dq, Dqd, out, D3 = h._values("forward_dynamics_gradient", (), g, outputs=0b1111)
-        t = dict(zip(names, tangents))
-        dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
-        if third in t and not _zero(t[third]):
-            dout = dout + _mv(D3, t[third])
-        out, dout = _vary_like([out, dout], [out, dout])
-        return out, dout
-
-    f.defjvp(jvp, symbolic_zeros=True)
-    return f(*[kw[n] for n in names])
+    q, qd = call["q"], call["qd"]
+    if op == "inverse_dynamics":
+        out = h._values(op, (), call)
+        D = h._values("inverse_dynamics_gradient", (), _only(call, "inverse_dynamics_gradient"))
+        Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
+        D3 = h._values("crba", (), {"q": q})  # ∂τ/∂qdd = M
+    else:  # one call: ∂qdd/∂q, ∂qdd/∂qd, qdd and ∂qdd/∂u = M⁻¹
+        g = _only(call, "forward_dynamics_gradient")
+        g["u"] = call[third]
+        Dq, Dqd, out, D3 = h._values("forward_dynamics_gradient", (), g, outputs=0b1111)
+    t = dict(zip(names, tangents))
+    dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
+    if third in t and not _zero(t[third]):
+        dout = dout + _mv(D3, t[third])
+    out, dout = _vary_like([out, dout], [out, dout])
+    return out, dout
 
 
-def _step_rule(h, op, args, kwargs):
+def _step_jvp(h, op, call, names, tangents):
     """integrator (q, qd, u -> x⁺) and plant_step (x, u -> x⁺): [A | B] in the tangent space"""
-    kw, names = _bind(h, op, args, kwargs)
+    _check_fext(op, names, tangents)
+    _check_convention(h, op, call)
     grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
-
-    @jax.custom_jvp
-    def f(*arrays):
-        return h._values(op, (), _with(kw, names, arrays))
-
-    def jvp(primals, tangents):
-        _check_fext(op, names, tangents)
-        call = _with(kw, names, primals)
-        _check_convention(h, op, call)
-        x_next, AB = h._values(grad_op, (), call, outputs=0b11)
-        nq, nv = h.nq, h.nv
-        batch = AB.shape[:-2]  # the call's batch shape: every tangent broadcast to it
-        t = {n: jnp.broadcast_to(_dense(tn, call[n]), batch + jnp.shape(call[n])[-1:]) for n, tn in zip(names, tangents)
-             if n != "f_ext"}
-        if op == "integrator":
-            q, tq, tqd = call["q"], t["q"], t["qd"]
-        else:
-            q, tq, tqd = call["x"][..., :nq], t["x"][..., :nq], t["x"][..., nq:]
-        dx = jnp.concatenate([_to_tangent(h, q, tq), tqd, t["u"]], -1)
-        d = _mv(AB, dx)  # [δq⁺ in the tangent space; δqd⁺]
-        dnext = jnp.concatenate([_from_tangent(h, x_next[..., :nq], d[..., :nv]), d[..., nv:]], -1)
-        x_next, dnext = _vary_like([x_next, dnext], [x_next, dnext])
-        return x_next, dnext
-
-    f.defjvp(jvp, symbolic_zeros=True)
-    return f(*[kw[n] for n in names])
+    x_next, AB = h._values(grad_op, (), call, outputs=0b11)
+    nq, nv = h.nq, h.nv
+    batch = AB.shape[:-2]  # the call's batch shape: every tangent broadcast to it
+    t = {n: jnp.broadcast_to(_dense(tn, call[n]), batch + jnp.shape(call[n])[-1:]) for n, tn in zip(names, tangents)
+         if n != "f_ext"}
+    if op == "integrator":
+        q, tq, tqd = call["q"], t["q"], t["qd"]
+    else:
+        q, tq, tqd = call["x"][..., :nq], t["x"][..., :nq], t["x"][..., nq:]
+    dx = jnp.concatenate([_to_tangent(h, q, tq), tqd, t["u"]], -1)
+    d = _mv(AB, dx)  # [δq⁺ in the tangent space; δqd⁺]
+    dnext = jnp.concatenate([_from_tangent(h, x_next[..., :nq], d[..., :nv]), d[..., nv:]], -1)
+    x_next, dnext = _vary_like([x_next, dnext], [x_next, dnext])
+    return x_next, dnext
 
 
-_RULES = {"inverse_dynamics": _dynamics_rule, "forward_dynamics": _dynamics_rule, "aba": _dynamics_rule,
-          "integrator": _step_rule, "plant_step": _step_rule}
+_RULES = {"inverse_dynamics": _dynamics_jvp, "forward_dynamics": _dynamics_jvp, "aba": _dynamics_jvp,
+          "integrator": _step_jvp, "plant_step": _step_jvp}

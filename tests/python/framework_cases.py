@@ -4,6 +4,8 @@ the manifold, central differences (in the tangent space for q) and a relative
 error."""
 
 import os
+import subprocess
+import sys
 
 import numpy as np
 
@@ -57,3 +59,14 @@ def rel(a, b):
     """max |a - b| relative to max(1, max |b|); a may be a JAX array or a PyTorch tensor"""
     a = a.detach().numpy() if hasattr(a, "detach") else np.asarray(a)
     return np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))
+
+
+def import_without(framework, module):
+    """what `import rbdkit` then `import rbdkit.<module>` print in a process where `framework` cannot be
+    imported: "ImportError: <message>" (the test asserts the message)"""
+    code = (f"import sys; sys.modules[{framework!r}] = None\n"
+            "import rbdkit\n"
+            f"try:\n    import rbdkit.{module}\nexcept ImportError as e:\n    print('ImportError:', e)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
+    assert r.returncode == 0, r.stderr
+    return r.stdout

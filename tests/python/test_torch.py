@@ -16,7 +16,7 @@ torch = pytest.importorskip("torch") if os.environ.get("CI") != "true" else __im
 import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
-from framework_cases import ROOT, SCHEMES, Handles, central_difference, rel, states  # noqa: E402
+from framework_cases import import_without, ROOT, SCHEMES, Handles, central_difference, rel, states  # noqa: E402
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -132,12 +132,7 @@ def test_errors_are_clear():
 
 
 def test_rbdkit_imports_without_torch():
-    code = ("import sys; sys.modules['torch'] = None\n"
-            "import rbdkit\n"
-            "try:\n    import rbdkit.torch\nexcept ImportError as e:\n    print('ImportError:', e)\n")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
-    assert r.returncode == 0, r.stderr
-    assert "ImportError: rbdkit.torch needs PyTorch: pip install torch" in r.stdout
+    assert 'ImportError: rbdkit.torch needs PyTorch: pip install torch' in import_without('torch', 'torch')
 
 
 def test_torch_distributed_shards_equal_the_unsharded_call():
