@@ -19,6 +19,7 @@ import argparse
 import os
 import sys
 import time
+import warnings
 
 import numpy as np
 
@@ -32,20 +33,23 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 
 
-def device_module():
-    """(name, to_device, synchronize) of PyTorch or CuPy on a GPU, or None"""
-    try:
-        import torch
-        if torch.cuda.is_available():
-            return "torch", (lambda a: torch.from_numpy(a).cuda()), torch.cuda.synchronize
-    except ImportError:
-        pass
-    try:
-        import cupy
-        if cupy.cuda.runtime.getDeviceCount() > 0:
-            return "cupy", cupy.asarray, cupy.cuda.runtime.deviceSynchronize
-    except Exception:  # noqa: BLE001  no CuPy, or no device for it
-        pass
+def device_module(choice="any"):
+    """(name, to_device, synchronize) of PyTorch or CuPy on a GPU (choice: "any", "torch", "cupy",
+    "none"), or None"""
+    if choice in ("any", "torch"):
+        try:
+            import torch
+            if torch.cuda.is_available():
+                return "torch", (lambda a: torch.from_numpy(a).cuda()), torch.cuda.synchronize
+        except ImportError:
+            pass
+    if choice in ("any", "cupy"):
+        try:
+            import cupy
+            if cupy.cuda.runtime.getDeviceCount() > 0:
+                return "cupy", cupy.asarray, cupy.cuda.runtime.deviceSynchronize
+        except Exception:  # noqa: BLE001  no CuPy, or no device for it
+            pass
     return None
 
 
@@ -80,15 +84,29 @@ def per_call(f, args, kwargs, sync, budget):
     return best
 
 
+def nbytes(result):
+    """bytes of an operation's result (an array or a tuple of arrays)"""
+    return sum(np.asarray(r).nbytes for r in result) if isinstance(result, tuple) else np.asarray(result).nbytes
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="iiwa and floating HyQ, B in {1, 256, 4096}")
     ap.add_argument("--out", help="also write the table (markdown) here")
     ap.add_argument("--budget", type=float, default=0.2, help="seconds per measurement")
+    ap.add_argument("--max-gb", type=float, default=4.0,
+                    help="skip a B whose inputs and outputs take more than this (GB): the Euler step Hessian "
+                         "of floating Atlas is 6.7 MB per knot point")
+    ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
+    ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
+                    help="the device arrays of the resident column")
     a = ap.parse_args()
     robots = ROBOTS[:1] + ROBOTS[3:4] if a.quick else ROBOTS
+    if a.robots:
+        robots = [r for r in ROBOTS if r[0] + ("_floating" if r[1] else "") in a.robots.split(",")]
     batches = (1, 256, 4096) if a.quick else BATCHES
-    dev = device_module()
+    dev = device_module(a.arrays)
+    warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias
     nosync = lambda: None  # noqa: E731
     lines = []
 
@@ -110,7 +128,14 @@ def main():
                 out("| robot | dtype | op | B | resident | host | cpu | cpu / resident |")
                 out("|---|---|---|---:|---:|---:|---:|---:|")
             for label, op in OPS:
+                args1, kw1 = arguments(cpu, op, 1, np.random.default_rng(0))
+                per_sample = nbytes(getattr(cpu, op)(*args1, **kw1)) + sum(x.nbytes for x in args1)
                 for B in batches:
+                    name = robot + ("_floating" if floating else "")
+                    if per_sample * B > a.max_gb * 1e9:
+                        out(f"| {name} | {dtype} | {label} | {B} | - | - | - | over --max-gb "
+                            f"({per_sample * B / 1e9:.1f} GB) |")
+                        continue
                     rng = np.random.default_rng(0)
                     args, kw = arguments(cu, op, B, rng)
                     host = per_call(getattr(cu, op), args, kw, nosync, a.budget) / B * 1e6
@@ -119,7 +144,6 @@ def main():
                     if dev:
                         dargs = tuple(dev[1](x) for x in args)
                         res = per_call(getattr(cu, op), dargs, kw, dev[2], a.budget) / B * 1e6
-                    name = robot + ("_floating" if floating else "")
                     out(f"| {name} | {dtype} | {label} | {B} | {'-' if res is None else f'{res:.3f}'} | "
                         f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |")
     if a.out:

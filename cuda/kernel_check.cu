@@ -178,7 +178,9 @@ int main(int argc, char** argv) {
   for (auto [name, floating] : {std::pair<const char*, bool>{"iiwa", false}, {"hyq", true}, {"atlas", true}}) {
     const Model m = Model::from_urdf_file(dir + "/" + name + ".urdf", floating);
     const double e64 = run<double>(m, 1000), e32 = run<float>(m, 1000);
-    const bool ok = e64 >= 0 && e64 < 1e-11 && e32 >= 0 && e32 < 1e-3;
+    // float: the CPU engine's float32 bound for M⁻¹ and the ABA derivatives (tests/cpp/registry_helpers.hpp),
+    // which amplify rounding by cond(M) (floating Atlas on an H200: 1.4e-3)
+    const bool ok = e64 >= 0 && e64 < 1e-11 && e32 >= 0 && e32 < 2e-3;
     std::printf("%-6s %s  double: max rel err %.2e   float: %.2e   %s\n", name, floating ? "floating" : "fixed   ",
                 e64, e32, ok ? "ok" : "MISMATCH");
     bad += ok ? 0 : 1;

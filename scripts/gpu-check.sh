@@ -5,12 +5,16 @@
 # compute-sanitizer (memcheck, racecheck) on a small batch, and
 # bench/gpu.py. Prints one summary table at the end; record it, with the
 # GPU's name, in docs/gpu.md.
-#   scripts/gpu-check.sh [--quick]      --quick: the benchmark's short form
+#   scripts/gpu-check.sh [--quick] [bench/gpu.py's options...]   --quick: the benchmark's short form
+# GPU_CHECK_PREBUILT=1: the build was made elsewhere by scripts/gpu-prebuild.sh (which says what
+# to copy here): the build step is skipped, and the Python step installs its wheel instead of
+# compiling (a Python extension compiled here against a library compiled there mixes two
+# compilers in one shared object: docs/gpu.md, 2026-11-26).
+# SANITIZER_TIMEOUT: seconds per compute-sanitizer run (default 300).
 # Exit status: non-zero when a test or a sanitizer check fails.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-quick=()
-[[ "${1:-}" == "--quick" ]] && quick=(--quick)
+bench_args=("$@")  # --quick, --budget S, --max-gb G: bench/gpu.py's
 export PATH="$PATH:/usr/local/cuda/bin"
 JOBS=${JOBS:-$(nproc)}
 ARCH=${CUDA_ARCH:-native}  # the machine's GPU only: a quicker build than 80;90
@@ -27,9 +31,19 @@ nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader ||
 gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
 
 # ---- build: the library with the real kernels, the C++ tests
-step "build (CMAKE_CUDA_ARCHITECTURES=$ARCH)" bash -c "
-  cmake -S . -B build/gpu -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=$ARCH -DRBDKIT_CUDA_CHECK=ON >/dev/null &&
-  cmake --build build/gpu -j $JOBS"
+prebuilt=${GPU_CHECK_PREBUILT:-0}
+if [[ "$prebuilt" == 1 ]]; then
+  ARCH=$(sed -n 's/^CMAKE_CUDA_ARCHITECTURES:[A-Z]*=//p' build/gpu/CMakeCache.txt)
+  summary+=("| build (CMAKE_CUDA_ARCHITECTURES=$ARCH) | built elsewhere (scripts/gpu-prebuild.sh), copied |")
+  export LD_LIBRARY_PATH="$PWD/.gpu/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"  # its tinyxml2
+  # the tests read the robots from the source tree's path there
+  src=$(sed -n 's/^CMAKE_HOME_DIRECTORY:INTERNAL=//p' build/gpu/CMakeCache.txt)
+  if [[ "$src" != "$PWD" && ! -e "$src" ]]; then mkdir -p "$(dirname "$src")" && ln -s "$PWD" "$src"; fi
+else
+  step "build (CMAKE_CUDA_ARCHITECTURES=$ARCH)" bash -c "
+    cmake -S . -B build/gpu -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=$ARCH -DRBDKIT_CUDA_CHECK=ON >/dev/null &&
+    cmake --build build/gpu -j $JOBS"
+fi
 
 # ---- the CUDA-vs-CPU tests on the device (the interpret-mode tests, with a real device instead)
 step "C++ CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 build/gpu/tests/cpp/rbdkit_tests \
@@ -41,7 +55,8 @@ step "C++ kernel check (cuda/kernel_check.cu)" build/gpu/cuda_kernel_check robot
 # kernels, there for the cooperative kernels that will share memory within a block)
 if command -v compute-sanitizer >/dev/null; then
   for tool in memcheck racecheck; do
-    step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 compute-sanitizer --tool "$tool" \
+    step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 timeout "${SANITIZER_TIMEOUT:-300}" \
+      compute-sanitizer --tool "$tool" \
       --error-exitcode 1 build/gpu/tests/cpp/rbdkit_tests --gtest_filter='Models/CudaModels.*/iiwa_fixed'
   done
 else
@@ -50,13 +65,17 @@ fi
 
 # ---- Python: the package on the same library, its CUDA tests on the device, the benchmark
 PY=${PYTHON:-python3}
-if "$PY" -c "import numpy, nanobind, scikit_build_core" 2>/dev/null; then
-  step "Python package" env PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q \
+if [[ "$prebuilt" == 1 ]]; then
+  step "Python package (.gpu/wheel)" env PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install \
+    -q --no-index --no-deps --force-reinstall .gpu/wheel/*.whl
+fi
+if [[ "$prebuilt" == 1 ]] || "$PY" -c "import numpy, nanobind, scikit_build_core" 2>/dev/null; then
+  [[ "$prebuilt" == 1 ]] || step "Python package" env PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q \
     --no-build-isolation --no-deps . -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/gpu/librbdkit.a" \
     -Ccmake.define.CMAKE_CUDA_ARCHITECTURES="$ARCH"
   step "Python CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q -p no:cacheprovider \
     tests/python/test_cuda.py
-  step "bench/gpu.py" "$PY" bench/gpu.py "${quick[@]}" --out build/gpu/gpu_bench.md
+  step "bench/gpu.py" "$PY" bench/gpu.py "${bench_args[@]}" --out build/gpu/gpu_bench.md
 else
   summary+=("| Python tests and bench/gpu.py | skipped: numpy, nanobind or scikit-build-core missing |")
 fi

@@ -164,3 +164,25 @@ def test_no_device_is_a_clear_error(monkeypatch):
     assert ("no CUDA device" if compiled else "no CUDA kernels") in str(e.value)
     with pytest.raises(ValueError, match="backend: expected 'cpu' or 'cuda'"):
         rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="gpu")
+
+
+@pytest.mark.skipif(ON_DEVICE, reason="scripts/gpu-check.sh runs the benchmark itself on the device")
+def test_bench_gpu_script(tmp_path):
+    """bench/gpu.py in interpret mode, on the smallest batches: it runs, writes its table, and skips a B
+    whose data would exceed --max-gb rather than allocating it"""
+    import subprocess
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = tmp_path / "gpu.md"
+    r = subprocess.run([sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
+                        "--budget", "0.001", "--max-gb", "1e-5", "--out", str(out)],
+                       env=dict(os.environ, RBDKIT_CUDA_INTERPRET="1"), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in out.read_text().splitlines() if line.startswith("| iiwa |")]
+    assert len(rows) == 2 * 8 * 7  # two dtypes, eight operations, seven batch sizes
+    # iiwa's ID at B = 16: 16 x 28 values in and out, 3.6 kB, under 10 kB: measured
+    id16 = [r for r in rows if r[2].strip() == "ID" and r[3].strip() == "16"]
+    assert len(id16) == 2 and all(float(r[5]) > 0 and float(r[6]) > 0 for r in id16)
+    # the Euler step Hessian of iiwa is 14 x 21 x 21 values (49 kB) a sample: skipped at every B
+    hess = [r for r in rows if r[2].strip() == "euler ∇²step"]
+    assert len(hess) == 14 and all("over --max-gb" in r[7] for r in hess)
