@@ -4,6 +4,8 @@ matrices of the maps between quaternion coordinates and the tangent space
 (rbdkit.jax's module doc), written once for either array module (`xp`:
 jax.numpy or torch; both have stack over an axis and the same indexing)."""
 
+import numpy as np
+
 from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as NumpyHandle
 
 # the operations with a derivative rule, and the algorithms their rule calls
@@ -13,7 +15,15 @@ DERIVATIVE_ALGORITHMS = {
     "aba": ("forward_dynamics_gradient",),
     "integrator": ("integrator_gradient",),
     "plant_step": ("integrator_gradient",),
+    "crba": ("idsva_so",),
+    "minv": ("idsva_so",),
+    "com": (),
+    "frame_placement": (),
+    "frame_jacobian": (),
+    "end_effector_pose": (),
 }
+# the operations of the configuration alone whose rule is configuration_jacobians' (q's tangent only)
+CONFIGURATION_RULES = ("crba", "minv", "com", "frame_placement", "frame_jacobian", "end_effector_pose")
 
 
 def with_derivative_algorithms(algorithms):
@@ -87,3 +97,77 @@ def call_keywords(op, names, args, kwargs):
             raise TypeError(f"{op}() got multiple values for argument '{name}'")
         kw[name] = v
     return kw
+
+
+# ε_ijk: [w]x = -ε·w, i.e. ([w]x)_ij = -ε_ijk w_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_j, _i, _k] = 1.0, -1.0
+
+
+def configuration_jacobians(xp, h, op, call, values):
+    """(outputs, jacobians) of an operation of the configuration alone (CONFIGURATION_RULES) at `call`
+    (its keywords): jacobians[o] (..., *shape of output o, nv) = ∂output_o/∂δ along tangent steps
+    q ⊕ δ, from rbdkit's analytical derivatives. A rule applies them to a tangent (JVP,
+    apply_jacobians) or a cotangent (VJP). values(op, keywords, outputs=-1) -> list of arrays is the
+    framework's call.
+      crba               ∂M/∂δ: dM_dq of the second-order inverse dynamics (idsva_so)
+      minv               -M⁻¹ (∂M/∂δ) M⁻¹ (the upper triangle where the call asks for it)
+      com                jacobian_com
+      frame_placement    ∂R = R [J_ω δ]x, ∂p = R J_v δ, with J the frame's LOCAL Jacobian
+      frame_jacobian     ∂J/∂δ_k = frame_jacobian_dot(q, e_k): one batched call over the nv directions
+      end_effector_pose  end_effector_pose_gradient"""
+    q = call["q"]
+    nv = h.nv
+    if op in ("crba", "minv"):
+        zero = xp.zeros(tuple(q.shape[:-1]) + (nv,), dtype=q.dtype)
+        dM = values("idsva_so", {"q": q, "qd": zero, "qdd": zero})[3]  # (..., nv, nv, nv): ∂M_ij/∂δ_k
+        if op == "crba":
+            return values("crba", {"q": q}), [dM]
+        out = values("minv", call)
+        Minv = out[0] if call.get("output_dense", True) else values("minv", {"q": q})[0]
+        D = -xp.einsum("...ia,...abk,...bj->...ijk", Minv, dM, Minv)
+        if not call.get("output_dense", True):  # the output is the upper triangle
+            D = D * xp.triu(xp.ones((nv, nv), dtype=q.dtype))[..., None]
+        return out, [D]
+    if op == "com":
+        return values("com", call), values("jacobian_com", {"q": q})
+    if op == "frame_placement":
+        R, p = values("frame_placement", call)
+        J = values("frame_jacobian", dict(call, reference_frame="LOCAL"))[0]
+        eps = xp.asarray(_LEVI_CIVITA, dtype=R.dtype)
+        dR = -xp.einsum("...ia,ajk,...kn->...ijn", R, eps, J[..., 3:, :])
+        dp = xp.einsum("...ia,...an->...in", R, J[..., :3, :])
+        return [R, p], [dR, dp]
+    if op == "frame_jacobian":
+        directions = xp.eye(nv, dtype=q.dtype)  # (nv, nv): the k-th is e_k
+        dJ = values("frame_jacobian_dot", dict(call, q=q[..., None, :], qd=directions))[0]  # (..., k, 6, nv)
+        return values("frame_jacobian", call), [xp.moveaxis(dJ, -3, -1)]
+    if op == "end_effector_pose":
+        return values("end_effector_pose", call), values("end_effector_pose_gradient", call)
+    raise KeyError(op)
+
+
+# the ranks of those operations' outputs (their shapes without the batch axes)
+OUTPUT_RANKS = {"crba": (2,), "minv": (2,), "com": (1,), "frame_placement": (2, 1), "frame_jacobian": (2,),
+                "end_effector_pose": (2,)}
+
+
+def apply_jacobians(op, jacobians, dq):
+    """[J·dq]: the changes (..., *shape) of op's outputs along the tangent dq (..., nv), for the
+    jacobians (..., *shape, nv) of configuration_jacobians (leading axes broadcast)"""
+    lead = tuple(dq.shape[:-1])
+    return [(J * dq.reshape(lead + (1,) * rank + (dq.shape[-1],))).sum(-1)
+            for J, rank in zip(jacobians, OUTPUT_RANKS[op])]
+
+
+def transpose_jacobians(op, jacobians, cotangents):
+    """Σ_o ⟨cotangent_o, J_o⟩ over each output's own axes: the tangent-space cotangent (..., nv) of
+    the configuration (None cotangents: outputs not used)"""
+    total = None
+    for J, ct, rank in zip(jacobians, cotangents, OUTPUT_RANKS[op]):
+        if ct is None:
+            continue
+        g = (J * ct[(...,) + (None,)]).sum(tuple(range(-rank - 1, -1)))
+        total = g if total is None else total + g
+    return total

@@ -20,6 +20,12 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
     inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient), ∂τ/∂qdd = M (crba)
     forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one call)
     integrator, plant_step  [A | B] = ∂x⁺/∂(x, u) (integrator_gradient / plant_step_gradient), every scheme
+    crba, minv              ∂M/∂q (idsva_so's dM_dq); ∂M⁻¹ = -M⁻¹ ∂M M⁻¹
+    com                     jacobian_com
+    frame_placement         ∂R = R [J_ω δ]x, ∂p = R J_v δ from the frame's LOCAL Jacobian
+    frame_jacobian          ∂J/∂q from frame_jacobian_dot (dJ/dt along each tangent direction)
+    end_effector_pose       end_effector_pose_gradient
+(the last five with respect to q only; their other arrays are constants).
 
 Every other operation computes values only; differentiating through one
 raises an error that names it (f_ext is not differentiable yet either).
@@ -64,8 +70,9 @@ except ImportError as e:  # an optional dependency
                       "rbdkit.jax again") from e
 
 from . import _core
-from ._frameworks import (add_operation_methods, call_keywords, half_q, one_dof_coordinates, quaternion_joints,
-                          rotation, with_derivative_algorithms)
+from ._frameworks import (CONFIGURATION_RULES, add_operation_methods, apply_jacobians, call_keywords,
+                          configuration_jacobians, half_q, one_dof_coordinates, quaternion_joints, rotation,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -382,5 +389,27 @@ def _step_jvp(h, op, call, names, tangents):
     return x_next, dnext
 
 
+def _configuration_jvp(h, op, call, names, tangents):
+    """crba, minv, com, frame_placement, frame_jacobian, end_effector_pose: functions of q alone, their
+    Jacobians (_frameworks.configuration_jacobians) applied to q's tangent"""
+    for n, t in zip(names, tangents):
+        if n != "q" and not _zero(t):
+            raise NotImplementedError(f"rbdkit.jax: {op} is differentiable with respect to q only, not {n}; "
+                                      f"treat {n} as a constant (jax.lax.stop_gradient)")
+    values = lambda o, kw, outputs=-1: _as_list(h._values(o, (), kw, outputs))  # noqa: E731
+    outs, jacobians = configuration_jacobians(jnp, h, op, call, values)
+    q = call["q"]
+    dq = _to_tangent(h, q, _dense(dict(zip(names, tangents))["q"], q))
+    douts = apply_jacobians(op, jacobians, dq)
+    both = _vary_like(outs + douts, outs + douts)
+    outs, douts = both[:len(outs)], both[len(outs):]
+    return (outs[0], douts[0]) if len(outs) == 1 else (tuple(outs), tuple(douts))
+
+
+def _as_list(r):
+    return list(r) if isinstance(r, tuple) else [r]
+
+
 _RULES = {"inverse_dynamics": _dynamics_jvp, "forward_dynamics": _dynamics_jvp, "aba": _dynamics_jvp,
           "integrator": _step_jvp, "plant_step": _step_jvp}
+_RULES.update({op: _configuration_jvp for op in CONFIGURATION_RULES})

@@ -13,8 +13,10 @@ leading batch shape (broadcast on the leading axes). Tensors are CPU tensors
 in the handle's dtype (float64 by default); parameters are Python values.
 
 Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M), forward_dynamics
-and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), and the
-integrator and plant_step for every scheme ([A | B]). Gradients with respect
+and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), the
+integrator and plant_step for every scheme ([A | B]), and, with respect to q,
+crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
+end_effector_pose (rbdkit.jax's module doc lists how). Gradients with respect
 to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
 tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
 along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
@@ -32,8 +34,9 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._frameworks import (add_operation_methods, call_keywords, half_q, one_dof_coordinates, quaternion_joints,
-                          rotation, with_derivative_algorithms)
+from ._frameworks import (CONFIGURATION_RULES, add_operation_methods, call_keywords, configuration_jacobians,
+                          half_q, one_dof_coordinates, quaternion_joints, rotation, transpose_jacobians,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
@@ -41,13 +44,15 @@ _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by oper
 # a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
+# the calls' parameters (name, value), interned: a call carries its index, for the backward formulas
+_PARAMS, _PARAM_INDEX = [], {}
 atexit.register(_HANDLES.clear)  # released at exit, before the extension's teardown
 _core.disable_leak_warnings()  # (those handles are kept on purpose)
 
 
 # ---------------------------------------------------------------- the custom operator
 
-def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks):
+def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks, params=-1):
     """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
     returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
     dtype = _HANDLES[handle].dtype
@@ -67,13 +72,14 @@ def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shape
 @torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
 def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
           choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
-          out_ranks: list[int]) -> list[torch.Tensor]:
-    """the custom operator: _kernel, with the fake kernel and the autograd formulas below"""
+          out_ranks: list[int], params: int) -> list[torch.Tensor]:
+    """the custom operator: _kernel, with the fake kernel and the autograd formulas below (params: the
+    index of the call's parameters in _PARAMS)"""
     return _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks)
 
 
 @_call.register_fake
-def _call_fake(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks):
+def _call_fake(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks, params):
     dtype = xs[0].dtype if xs else torch.float64
     return [xs[0].new_empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
 
@@ -87,10 +93,10 @@ def _shapes(flat, ranks):
 
 
 def _setup_context(ctx, inputs, output):
-    xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks = inputs
+    xs, handle, op, slots = inputs[:4]
     ctx.save_for_backward(*xs, *output)
     ctx.n_in = len(xs)
-    ctx.call = (handle, op, list(slots), list(outputs), list(reals), list(choices), list(ee))
+    ctx.call = (op, list(slots), inputs[-1])
     ctx.handle = _HANDLES.get(handle)  # the handle the backward formulas use
     # backward returns the inputs' structure: None for each parameter, [] for an empty list
     ctx.rest = [[] if isinstance(a, (list, tuple)) and len(a) == 0 else None for a in inputs[1:]]
@@ -99,7 +105,7 @@ def _setup_context(ctx, inputs, output):
 def _backward(ctx, grads):
     saved = ctx.saved_tensors
     xs, outs = list(saved[:ctx.n_in]), list(saved[ctx.n_in:])
-    handle, op, slots, outputs, reals, choices, ee = ctx.call
+    op, slots, params = ctx.call
     h = ctx.handle
     name = _NAMES[op]
     rule = _RULES.get(name)
@@ -108,7 +114,7 @@ def _backward(ctx, grads):
                                   f"differentiable operations are {', '.join(sorted(_RULES))}")
     sig = [a[0] for a in _SIGNATURES[name]]
     call = {sig[k]: x for k, x in zip(slots, xs)}
-    kw = h._params(name, reals, choices, slots)
+    kw = dict(_PARAMS[params])
     grads_by_name = rule(h, name, call, kw, [g for g in grads], outs)
     return ([grads_by_name.get(sig[k]) for k in slots], *ctx.rest)
 
@@ -118,15 +124,19 @@ _call.register_autograd(_backward, setup_context=_setup_context)
 
 @torch._dynamo.assume_constant_result
 def _plan(address, op, params, arrays, outputs):
-    """a call's layout (OpHandle.plan) from its parameters (name, value) and the names of its arrays;
-    constant for torch.compile (parameters are Python values, fixed at trace time)"""
+    """a call's layout (OpHandle.plan) from its parameters (name, value) and the names of its arrays,
+    and the parameters' index in _PARAMS; constant for torch.compile (parameters are Python values,
+    fixed at trace time)"""
     h = _HANDLES[address]
     kw = dict(params)
     kw.update({name: 0 for name in arrays})  # the arrays' places (plan does not read them)
     op_id, planned, reals, choices, ee, outs = h._core.plan(op, (), kw, outputs)
     sig = _SIGNATURES[op]
+    if params not in _PARAM_INDEX:
+        _PARAM_INDEX[params] = len(_PARAMS)
+        _PARAMS.append(params)
     return (op_id, tuple((k, sig[k][0], tuple(shape)) for k, _, shape in planned), tuple(reals), tuple(choices),
-            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs))
+            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs), _PARAM_INDEX[params])
 
 
 # ---------------------------------------------------------------- the handle
@@ -165,7 +175,8 @@ class Handle:
                 tensors[name] = v if isinstance(v, torch.Tensor) else torch.as_tensor(np.asarray(v))
             else:
                 params.append((name, tuple(v) if isinstance(v, list) else v))
-        op_id, arrays, reals, choices, ee, outs = _plan(self._address, op, tuple(params), tuple(tensors), outputs)
+        op_id, arrays, reals, choices, ee, outs, key = _plan(self._address, op, tuple(params), tuple(tensors),
+                                                             outputs)
         xs = []
         for k, name, shape in arrays:
             x = tensors[name]
@@ -186,28 +197,12 @@ class Handle:
               for x, (_, _, s) in zip(xs, arrays)]
         flat = [d for _, s in outs for d in s]
         call = (xs, self._address, op_id, [k for k, _, _ in arrays], [o for o, _ in outs], list(reals),
-                list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs])
+                list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs], key)
         # the custom operator where autograd or torch.compile needs it; its kernel directly otherwise
         # (the operator's Python dispatch costs about 90 µs a call)
         if torch.compiler.is_compiling() or (torch.is_grad_enabled() and any(x.requires_grad for x in xs)):
             return list(_call(*call))
         return _kernel(*call)
-
-    def _params(self, op, reals, choices, slots):
-        """the parameters of a call (not its arrays) as keywords, from its reals and choices"""
-        kw = {}
-        for k, (name, kind, _) in enumerate(_SIGNATURES[op]):
-            if k in slots or kind in ("array", "optional"):
-                continue
-            if kind in ("real", "dt", "positive"):
-                kw[name] = reals[k]
-            elif kind == "integrator":
-                kw[name] = _INTEGRATORS[choices[k]]
-            elif kind == "convention":
-                kw[name] = ("pinocchio", "mujoco")[choices[k]]
-            elif kind == "flag":
-                kw[name] = bool(choices[k])
-        return kw
 
     def _method_call(self, op, args, kwargs):
         kw = call_keywords(op, [a[0] for a in _SIGNATURES[op]], args, kwargs)
@@ -215,6 +210,11 @@ class Handle:
                 and any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values()):
             raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
                                       f"with free-flyer or spherical joints is not available")
+        if op in CONFIGURATION_RULES:
+            for name, v in kw.items():
+                if name != "q" and isinstance(v, torch.Tensor) and v.requires_grad:
+                    raise NotImplementedError(f"rbdkit.torch: {op} is differentiable with respect to q only, not "
+                                              f"{name}; pass {name}.detach()")
         if isinstance(kw.get("f_ext"), torch.Tensor) and kw["f_ext"].requires_grad and op in _RULES:
             raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
                                       f"yet; pass f_ext.detach()")
@@ -228,9 +228,6 @@ class Handle:
 
     def __repr__(self):
         return f"<rbdkit.torch.Handle of {self.model!r}: dtype={self.dtype}>"
-
-
-_INTEGRATORS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration")
 
 
 add_operation_methods(Handle, "_method_call")
@@ -311,5 +308,16 @@ def _step_vjp(h, op, call, kw, grads, outs):
     return {"x": torch.cat([gq, g[..., nv:2 * nv]], -1), "u": g[..., 2 * nv:]}
 
 
+def _configuration_vjp(h, op, call, kw, grads, outs):
+    """crba, minv, com, frame_placement, frame_jacobian, end_effector_pose: functions of q alone, the
+    cotangents through their Jacobians (_frameworks.configuration_jacobians)"""
+    q = call["q"]
+    args = dict(kw, **{k: v.detach() for k, v in call.items()})
+    _, jacobians = configuration_jacobians(torch, h, op, args, lambda o, a, outputs=-1: h._values(o, a, outputs))
+    g = transpose_jacobians(op, jacobians, grads)
+    return {"q": None if g is None else _tangent_map(h, q, g, "pinv_T")}
+
+
 _RULES = {"inverse_dynamics": _dynamics_vjp, "forward_dynamics": _dynamics_vjp, "aba": _dynamics_vjp,
           "integrator": _step_vjp, "plant_step": _step_vjp}
+_RULES.update({op: _configuration_vjp for op in CONFIGURATION_RULES})

@@ -16,6 +16,21 @@ URDF = os.path.join(ROOT, "tests", "urdf")
 SCHEMES = ["euler", "semi_implicit_euler", "midpoint", "rk4", "trapezoidal", "constant_acceleration"]
 
 
+# the operations of the configuration alone with a derivative rule, with their parameters
+CONFIGURATION_CASES = [("crba", {}), ("minv", {}), ("minv", {"output_dense": False}), ("com", {}),
+                       ("frame_placement", {}), ("frame_jacobian", {}),
+                       ("frame_jacobian", {"reference_frame": "WORLD"}),
+                       ("frame_jacobian", {"reference_frame": "LOCAL_WORLD_ALIGNED"}), ("end_effector_pose", {})]
+
+
+def configuration_call(h, op, kw):
+    """f(handle, q) -> op's outputs as a list (a framework's handle or the NumPy one, h.numpy), with a
+    frame of the model's where op takes one"""
+    if op in ("frame_placement", "frame_jacobian"):
+        kw = dict(kw, frame_name=h.model.frame_names[len(h.model.frame_names) // 2])
+    return lambda hh, q: (lambda r: list(r) if isinstance(r, tuple) else [r])(getattr(hh, op)(q, **kw))
+
+
 def load(name, floating):
     if name in rbdkit.robots.names():
         return rbdkit.robots.load(name, floating_base=floating)

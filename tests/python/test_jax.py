@@ -18,7 +18,8 @@ import rbdkit.jax as rj  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-from framework_cases import import_without, SCHEMES, Handles, central_difference, on_manifold, rel, states  # noqa: E402
+from framework_cases import (CONFIGURATION_CASES, SCHEMES, Handles, central_difference, configuration_call,  # noqa: E402
+                             import_without, on_manifold, rel, states)
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
 # spherical, helical, planar (prismatic and continuous) and mimic joints
@@ -172,6 +173,32 @@ def test_step_gradients_against_central_differences(name, floating, scheme):
         assert rel(Jf, Jn) < 1e-6 and rel(Jr, Jn) < 1e-6, scheme
 
 
+@pytest.mark.parametrize("name,floating", MODELS)
+def test_configuration_gradients_against_central_differences(name, floating):
+    h = handle(name, floating)
+    q = states(h, 1, seed=9)[0][0]
+    rng = np.random.default_rng(10)
+    for op, kw in CONFIGURATION_CASES:
+        f = configuration_call(h, op, kw)
+        ws = [rng.standard_normal(np.shape(o)) for o in f(h.numpy, q)]
+        # reverse mode: the gradient of Σ w·output, in the tangent space through tangent_gradient (jitted:
+        # a third of the eager time)
+        gq = jax.jit(jax.grad(lambda q: sum(jnp.sum(w * o) for w, o in zip(ws, f(h, q)))))(q)
+        Jn = central_difference(lambda x: sum(np.sum(w * o) for w, o in zip(ws, f(h.numpy, x))), q,
+                                **on_manifold(h))
+        assert rel(h.tangent_gradient(q, gq), Jn) < 1e-6, (op, kw)
+        # forward mode along a tangent direction d: the change of every output (reverse mode is its
+        # transpose; one fixed and one floating base keep the test's time down)
+        if name not in ("iiwa", "hyq"):
+            continue
+        d = rng.standard_normal(h.nv)
+        dout = jax.jit(lambda q, dq: jax.jvp(lambda q: f(h, q), (q,), (dq,))[1])(q, h.from_tangent(q, d))
+        e = 1e-5
+        fd = [(a - b) / (2 * e) for a, b in zip(f(h.numpy, h.numpy.rbd.integrate(q, e * d)),
+                                                 f(h.numpy, h.numpy.rbd.integrate(q, -e * d)))]
+        assert max(rel(a, b) for a, b in zip(dout, fd)) < 1e-6, (op, kw, [rel(a, b) for a, b in zip(dout, fd)])
+
+
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
 def test_coordinate_and_tangent_maps(name, floating):
     h = handle(name, floating)
@@ -196,8 +223,10 @@ def test_coordinate_and_tangent_maps(name, floating):
 def test_operations_without_a_rule_and_f_ext_say_so():
     h = handle("iiwa", False)
     q, qd, u = (a[0] for a in states(h, 1))
-    with pytest.raises(NotImplementedError, match="crba computes values only"):
-        jax.grad(lambda q: jnp.sum(h.crba(q)))(q)
+    with pytest.raises(NotImplementedError, match="coriolis_matrix computes values only"):
+        jax.grad(lambda q: jnp.sum(h.coriolis_matrix(q, qd)))(q)
+    with pytest.raises(NotImplementedError, match="end_effector_pose is differentiable with respect to q only"):
+        jax.grad(lambda o: jnp.sum(h.end_effector_pose(q, ee_offsets=o)))(np.zeros((1, 3)))
     with pytest.raises(NotImplementedError, match="f_ext"):
         jax.grad(lambda f: jnp.sum(h.inverse_dynamics(q, qd, u, f_ext=f)))(np.zeros((h.nb, 6)))
     # MuJoCo's coordinates on a model with quaternions: values, but no derivative

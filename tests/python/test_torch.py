@@ -16,7 +16,8 @@ torch = pytest.importorskip("torch") if os.environ.get("CI") != "true" else __im
 import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
-from framework_cases import import_without, ROOT, SCHEMES, Handles, central_difference, rel, states  # noqa: E402
+from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, Handles, central_difference,  # noqa: E402
+                             configuration_call, import_without, rel, states)
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -71,6 +72,9 @@ def test_gradcheck(name, floating):
         assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
     x = torch.cat([q, qd], -1).detach().requires_grad_()
     assert torch.autograd.gradcheck(lambda x, u: h.plant_step(x, u, 0.01, "rk4"), (x, u))
+    for op, kw in CONFIGURATION_CASES:
+        f = configuration_call(h, op, kw)
+        assert torch.autograd.gradcheck(lambda q: tuple(f(h, q)), (q,)), (op, kw)
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
@@ -95,6 +99,14 @@ def test_quaternion_models_against_central_differences(name, floating):
         assert rel(h.tangent_gradient(tq.detach(), tq.grad), central_difference(lambda z: f(z, qd, u), q,
                                                                                **manifold)) < 1e-6, scheme
         assert rel(tu.grad, central_difference(lambda z: f(q, qd, z), u)) < 1e-6, scheme
+    rng = np.random.default_rng(5)
+    for op, kw in CONFIGURATION_CASES:
+        f = configuration_call(h, op, kw)
+        ws = [rng.standard_normal(np.shape(o)) for o in f(h.numpy, q)]
+        tq = torch.tensor(q, requires_grad=True)
+        sum((o * torch.tensor(w)).sum() for w, o in zip(ws, f(h, tq))).backward()
+        g = central_difference(lambda z: sum(np.sum(w * o) for w, o in zip(ws, f(h.numpy, z))), q, **manifold)
+        assert rel(h.tangent_gradient(tq.detach(), tq.grad), g) < 1e-6, (op, kw)
 
 
 def test_torch_compile_traces_without_graph_breaks():
@@ -115,8 +127,10 @@ def test_torch_compile_traces_without_graph_breaks():
 def test_errors_are_clear():
     h = handle("iiwa", False)
     q, qd, u = tensors(*states(h, 1))
-    with pytest.raises(RuntimeError, match="crba computes values only"):
-        h.crba(q).sum().backward()
+    with pytest.raises(RuntimeError, match="coriolis_matrix computes values only"):
+        h.coriolis_matrix(q, qd).sum().backward()
+    with pytest.raises(NotImplementedError, match="differentiable with respect to q only, not ee_offsets"):
+        h.end_effector_pose(q, ee_offsets=torch.zeros(1, 3, dtype=torch.float64, requires_grad=True))
     with pytest.raises(NotImplementedError, match="f_ext"):
         h.aba(q, qd, u, f_ext=torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True))
     with pytest.raises(ValueError, match=r"qd: expected shape \(\.\.\., 7\)"):
