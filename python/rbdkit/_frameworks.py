@@ -171,3 +171,64 @@ def transpose_jacobians(op, jacobians, cotangents):
         g = (J * ct[(...,) + (None,)]).sum(tuple(range(-rank - 1, -1)))
         total = g if total is None else total + g
     return total
+
+
+# ---- the costs and barriers whose every derivative is a closed form, coordinate by coordinate:
+# the quadratics ½ Σ w (x - x_des)² (value, grad, H = diag(w)) and the log barriers
+# -mu Σ [log(x - lower) + log(upper - x)] (value, grad, Hdiag), in the coordinates given (ambient)
+ELEMENTWISE_RULES = ("quadratic_state_cost", "quadratic_input_cost", "joint_position_barrier",
+                     "joint_velocity_barrier", "joint_torque_barrier")
+
+
+def elementwise_arguments(op):
+    """the names of the three arrays of an ELEMENTWISE_RULES operation: (x, x_des, weights) or
+    (x, lower, upper)"""
+    if op == "quadratic_state_cost":
+        return "x", "x_des", "Q"
+    if op == "quadratic_input_cost":
+        return "u", "u_des", "R"
+    return {"joint_position_barrier": "q", "joint_velocity_barrier": "qd", "joint_torque_barrier": "u"}[op], \
+        "lower", "upper"
+
+
+def _barrier_terms(x, lower, upper):
+    """a = 1/(x - lower), b = 1/(upper - x): 0 for an infinite bound"""
+    return 1 / (x - lower), 1 / (upper - x)
+
+
+def elementwise_jvp(xp, op, mu, x, a, b, outs, dx, da, db):
+    """the changes of (value, grad, H or Hdiag) of an ELEMENTWISE_RULES operation at (x, a, b) (its
+    arrays, elementwise_arguments), outs its outputs, along (dx, da, db)"""
+    v, g, H = outs
+    if op.startswith("quadratic"):
+        r, dr = x - a, dx - da
+        return ((g * dr).sum(-1) + 0.5 * (r * r * db).sum(-1), b * dr + r * db,
+                db[..., :, None] * xp.eye(x.shape[-1], dtype=x.dtype))
+    ia, ib = _barrier_terms(x, a, b)
+    dv = (g * dx).sum(-1) + mu * (ia * da).sum(-1) - mu * (ib * db).sum(-1)
+    dg = H * dx - mu * ia * ia * da - mu * ib * ib * db
+    dh = 2 * mu * ((ib ** 3 - ia ** 3) * dx + ia ** 3 * da - ib ** 3 * db)
+    return dv, dg, dh
+
+
+def elementwise_vjp(xp, op, mu, x, a, b, outs, cv, cg, ch):
+    """the cotangents of (x, a, b) of an ELEMENTWISE_RULES operation from those of its outputs
+    (value, grad, H or Hdiag; None: not used): elementwise_jvp transposed"""
+    v, g, H = outs
+    zero = xp.zeros_like(x)
+    cv = zero[..., 0] if cv is None else cv
+    cg = zero if cg is None else cg
+    if op.startswith("quadratic"):
+        r = x - a
+        gx = cv[..., None] * g + b * cg
+        gb = 0.5 * cv[..., None] * r * r + r * cg
+        if ch is not None:
+            gb = gb + xp.diagonal(ch, 0, -2, -1)
+        return gx, -gx, gb
+    ch = zero if ch is None else ch
+    ia, ib = _barrier_terms(x, a, b)
+    c = cv[..., None]
+    gx = c * g + cg * H + 2 * mu * (ib ** 3 - ia ** 3) * ch
+    ga = mu * (c * ia - cg * ia * ia + 2 * ch * ia ** 3)
+    gb = -mu * (c * ib + cg * ib * ib + 2 * ch * ib ** 3)
+    return gx, ga, gb

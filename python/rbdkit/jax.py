@@ -25,7 +25,11 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
     frame_placement         ∂R = R [J_ω δ]x, ∂p = R J_v δ from the frame's LOCAL Jacobian
     frame_jacobian          ∂J/∂q from frame_jacobian_dot (dJ/dt along each tangent direction)
     end_effector_pose       end_effector_pose_gradient
-(the last five with respect to q only; their other arrays are constants).
+(those five with respect to q only; their other arrays are constants), and
+    quadratic_state_cost, quadratic_input_cost, joint_position_barrier,
+    joint_velocity_barrier, joint_torque_barrier
+                            value, grad and H (or Hdiag) with respect to every array: closed forms
+                            coordinate by coordinate (the costs' own grad and H, then the rest)
 
 Every other operation computes values only; differentiating through one
 raises an error that names it (f_ext is not differentiable yet either).
@@ -70,9 +74,9 @@ except ImportError as e:  # an optional dependency
                       "rbdkit.jax again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, add_operation_methods, apply_jacobians, call_keywords,
-                          configuration_jacobians, half_q, one_dof_coordinates, quaternion_joints, rotation,
-                          with_derivative_algorithms)
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, add_operation_methods, apply_jacobians,
+                          call_keywords, configuration_jacobians, elementwise_arguments, elementwise_jvp, half_q,
+                          one_dof_coordinates, quaternion_joints, rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -410,6 +414,20 @@ def _as_list(r):
     return list(r) if isinstance(r, tuple) else [r]
 
 
+def _elementwise_jvp(h, op, call, names, tangents):
+    """the quadratic costs and the log barriers: closed forms coordinate by coordinate, every output
+    with respect to every array (_frameworks.elementwise_jvp)"""
+    outs = list(h._values(op, (), call))
+    t = dict(zip(names, tangents))
+    arrays = [jnp.asarray(call[n], h.dtype) for n in elementwise_arguments(op)]
+    d = [_dense(t[n], a) for n, a in zip(elementwise_arguments(op), arrays)]
+    douts = [jnp.broadcast_to(dd, o.shape) for dd, o in zip(elementwise_jvp(jnp, op, call.get("mu"), *arrays, outs,
+                                                                            *d), outs)]
+    both = _vary_like(outs + douts, outs + douts)
+    return tuple(both[:3]), tuple(both[3:])
+
+
 _RULES = {"inverse_dynamics": _dynamics_jvp, "forward_dynamics": _dynamics_jvp, "aba": _dynamics_jvp,
           "integrator": _step_jvp, "plant_step": _step_jvp}
 _RULES.update({op: _configuration_jvp for op in CONFIGURATION_RULES})
+_RULES.update({op: _elementwise_jvp for op in ELEMENTWISE_RULES})

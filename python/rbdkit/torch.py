@@ -16,7 +16,8 @@ Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M), forwar
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), the
 integrator and plant_step for every scheme ([A | B]), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
-end_effector_pose (rbdkit.jax's module doc lists how). Gradients with respect
+end_effector_pose, and the quadratic costs and log barriers with respect to
+every array (rbdkit.jax's module doc lists how). Gradients with respect
 to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
 tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
 along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
@@ -34,8 +35,9 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, add_operation_methods, call_keywords, configuration_jacobians,
-                          half_q, one_dof_coordinates, quaternion_joints, rotation, transpose_jacobians,
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, add_operation_methods, call_keywords,
+                          configuration_jacobians, elementwise_arguments, elementwise_vjp, half_q,
+                          one_dof_coordinates, quaternion_joints, rotation, transpose_jacobians,
                           with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
@@ -321,3 +323,12 @@ def _configuration_vjp(h, op, call, kw, grads, outs):
 _RULES = {"inverse_dynamics": _dynamics_vjp, "forward_dynamics": _dynamics_vjp, "aba": _dynamics_vjp,
           "integrator": _step_vjp, "plant_step": _step_vjp}
 _RULES.update({op: _configuration_vjp for op in CONFIGURATION_RULES})
+
+
+def _elementwise_vjp(h, op, call, kw, grads, outs):
+    """the quadratic costs and the log barriers (_frameworks.elementwise_vjp)"""
+    names = elementwise_arguments(op)
+    return dict(zip(names, elementwise_vjp(torch, op, kw.get("mu"), *(call[n] for n in names), outs, *grads)))
+
+
+_RULES.update({op: _elementwise_vjp for op in ELEMENTWISE_RULES})

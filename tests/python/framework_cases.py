@@ -31,6 +31,23 @@ def configuration_call(h, op, kw):
     return lambda hh, q: (lambda r: list(r) if isinstance(r, tuple) else [r])(getattr(hh, op)(q, **kw))
 
 
+def elementwise_cases(h, seed=0):
+    """(op, (x, a, b), mu) for the quadratic costs and the log barriers of handle h: random states,
+    targets and weights; bounds around the state, one of each kind infinite"""
+    rng = np.random.default_rng(seed)
+    nx = h.nq + h.nv
+    cases = [("quadratic_state_cost", (rng.standard_normal(nx), rng.standard_normal(nx), rng.uniform(0.5, 2, nx)),
+              None),
+             ("quadratic_input_cost", (rng.standard_normal(h.nv), rng.standard_normal(h.nv),
+                                       rng.uniform(0.5, 2, h.nv)), None)]
+    for op, n in (("joint_position_barrier", h.nq), ("joint_velocity_barrier", h.nv), ("joint_torque_barrier", h.nv)):
+        x = rng.standard_normal(n)
+        lower, upper = x - rng.uniform(0.3, 1, n), x + rng.uniform(0.3, 1, n)
+        lower[0], upper[-1] = -np.inf, np.inf
+        cases.append((op, (x, lower, upper), 0.7))
+    return cases
+
+
 def load(name, floating):
     if name in rbdkit.robots.names():
         return rbdkit.robots.load(name, floating_base=floating)

@@ -19,7 +19,7 @@ import rbdkit.jax as rj  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 from framework_cases import (CONFIGURATION_CASES, SCHEMES, Handles, central_difference, configuration_call,  # noqa: E402
-                             import_without, on_manifold, rel, states)
+                             elementwise_cases, import_without, on_manifold, rel, states)
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
 # spherical, helical, planar (prismatic and continuous) and mimic joints
@@ -197,6 +197,26 @@ def test_configuration_gradients_against_central_differences(name, floating):
         fd = [(a - b) / (2 * e) for a, b in zip(f(h.numpy, h.numpy.rbd.integrate(q, e * d)),
                                                  f(h.numpy, h.numpy.rbd.integrate(q, -e * d)))]
         assert max(rel(a, b) for a, b in zip(dout, fd)) < 1e-6, (op, kw, [rel(a, b) for a, b in zip(dout, fd)])
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
+def test_cost_and_barrier_derivatives_against_central_differences(name, floating):
+    h = handle(name, floating)
+    for op, arrays, mu in elementwise_cases(h.numpy, seed=11):
+        kw = {} if mu is None else {"mu": mu}
+        f = lambda *a: getattr(h, op)(*a, **kw)  # noqa: E731
+        f_np = lambda *a: getattr(h.numpy, op)(*a, **kw)  # noqa: E731
+        # every output (value, grad, H or Hdiag) with respect to every array, forward and reverse mode
+        Jf = jax.jit(jax.jacfwd(f, argnums=(0, 1, 2)))(*arrays)
+        Jr = jax.jit(jax.jacrev(f, argnums=(0, 1, 2)))(*arrays)
+        for k in range(3):
+            for o in range(3):
+                def one(z, k=k, o=o):
+                    args = list(arrays)
+                    args[k] = z
+                    return np.asarray(f_np(*args)[o])
+                Jn = central_difference(one, arrays[k], eps=1e-6)
+                assert rel(Jf[o][k], Jn) < 1e-6 and rel(Jr[o][k], Jn) < 1e-6, (op, k, o)
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])

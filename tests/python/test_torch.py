@@ -17,7 +17,7 @@ import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
 from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, Handles, central_difference,  # noqa: E402
-                             configuration_call, import_without, rel, states)
+                             configuration_call, elementwise_cases, import_without, rel, states)
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -75,6 +75,9 @@ def test_gradcheck(name, floating):
     for op, kw in CONFIGURATION_CASES:
         f = configuration_call(h, op, kw)
         assert torch.autograd.gradcheck(lambda q: tuple(f(h, q)), (q,)), (op, kw)
+    for op, arrays, mu in elementwise_cases(h.numpy):
+        kw = {} if mu is None else {"mu": mu}
+        assert torch.autograd.gradcheck(lambda *a: getattr(h, op)(*a, **kw), tuple(tensors(*arrays))), op
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
