@@ -21,6 +21,10 @@ DERIVATIVE_ALGORITHMS = {
     "frame_placement": (),
     "frame_jacobian": (),
     "end_effector_pose": (),
+    "quadratic_state_cost_tangent": ("configuration",),
+    "com_cost": ("com",),
+    "momentum_cost": ("ccrba",),
+    "ee_pos_cost": ("kinematics",),
 }
 # the operations of the configuration alone whose rule is configuration_jacobians' (q's tangent only)
 CONFIGURATION_RULES = ("crba", "minv", "com", "frame_placement", "frame_jacobian", "end_effector_pose")
@@ -232,3 +236,39 @@ def elementwise_vjp(xp, op, mu, x, a, b, outs, cv, cg, ch):
     ga = mu * (c * ia - cg * ia * ia + 2 * ch * ia ** 3)
     gb = -mu * (c * ib + cg * ib * ib + 2 * ch * ib ** 3)
     return gx, ga, gb
+
+
+# ---- the Gauss–Newton costs: their value is differentiable with respect to every array (its own grad
+# for the state, closed forms for the targets and weights); their grad and H are values (H drops the
+# residual's curvature, so H·δ is not the change of grad)
+GAUSS_NEWTON_RULES = ("quadratic_state_cost_tangent", "com_cost", "momentum_cost", "ee_pos_cost")
+
+
+def gauss_newton_value_vjp(xp, h, op, call, outs, cv, values, pinv_t):
+    """{array name: cotangent} of a GAUSS_NEWTON_RULES cost's arrays from its value's cotangent cv (...,),
+    outs its outputs (value, grad, H). values(op, keywords) -> list of arrays is the framework's call;
+    pinv_t(q, g) maps a tangent-space cotangent at q to the coordinates (E⁺ᵀ g)."""
+    _, g, _ = outs
+    c = cv[..., None]
+    nq, nv = h.nq, h.nv
+    if op == "quadratic_state_cost_tangent":  # ½ eᵀ diag(Q) e, e = [q ⊖ q_des; qd - qd_des]
+        x, x_des, Q = call["x"], call["x_des"], call["Q"]
+        q, q_des = x[..., :nq], x_des[..., :nq]
+        e = xp.concatenate([values("difference", {"q0": q_des, "q1": q})[0], x[..., nq:] - x_des[..., nq:]], -1)
+        Qe = Q * e
+        D_from = values("dDifference", {"q0": q_des, "q1": q, "with_respect_to": "from"})[0]
+        g_des = xp.einsum("...ji,...j->...i", D_from, Qe[..., :nv])  # ∂value/∂δq_des
+        return {"x": xp.concatenate([pinv_t(q, c * g[..., :nv]), c * g[..., nv:]], -1),
+                "x_des": xp.concatenate([pinv_t(q_des, c * g_des), -c * Qe[..., nv:]], -1),
+                "Q": 0.5 * c * e * e}
+    q, W = call["q"], call["W"]
+    if op == "momentum_cost":  # ½ Σ W r², r = A(q) qd - h_des
+        r = values("centroidal_momentum", {"q": q, "qd": call["qd"]})[0] - call["h_des"]
+        return {"q": pinv_t(q, c * g[..., :nv]), "qd": c * g[..., nv:], "h_des": -c * W * r, "W": 0.5 * c * r * r}
+    if op == "com_cost":  # ½ Σ W r², r = com(q) - p_des
+        r = values("com", {"q": q})[0] - call["p_des"]
+    else:  # ee_pos_cost: r = p_ee(q) - p_des, p_ee the end effector's tool point
+        ee = {"ee_joint_names": None if call.get("ee_joint_name") is None else [call["ee_joint_name"]],
+              "ee_offsets": None if call.get("ee_offset") is None else call["ee_offset"][..., None, :]}
+        r = values("end_effector_pose", dict(ee, q=q))[0][..., 0, :3] - call["p_des"]
+    return {"q": pinv_t(q, c * g[..., :nv]), "p_des": -c * W * r, "W": 0.5 * c * r * r}

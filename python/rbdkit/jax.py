@@ -25,11 +25,16 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
     frame_placement         ∂R = R [J_ω δ]x, ∂p = R J_v δ from the frame's LOCAL Jacobian
     frame_jacobian          ∂J/∂q from frame_jacobian_dot (dJ/dt along each tangent direction)
     end_effector_pose       end_effector_pose_gradient
-(those five with respect to q only; their other arrays are constants), and
+(those five with respect to q only; their other arrays are constants),
     quadratic_state_cost, quadratic_input_cost, joint_position_barrier,
     joint_velocity_barrier, joint_torque_barrier
                             value, grad and H (or Hdiag) with respect to every array: closed forms
-                            coordinate by coordinate (the costs' own grad and H, then the rest)
+                            coordinate by coordinate (the costs' own grad and H, then the rest), and
+    quadratic_state_cost_tangent, com_cost, momentum_cost, ee_pos_cost
+                            the value with respect to every array (ee_offset excepted), in reverse
+                            mode (a jax.custom_vjp): the cost's own gradient for the state, closed
+                            forms for the targets and weights; their grad and H (Gauss–Newton) are
+                            values, and a gradient through them raises
 
 Every other operation computes values only; differentiating through one
 raises an error that names it (f_ext is not differentiable yet either).
@@ -74,9 +79,10 @@ except ImportError as e:  # an optional dependency
                       "rbdkit.jax again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, add_operation_methods, apply_jacobians,
-                          call_keywords, configuration_jacobians, elementwise_arguments, elementwise_jvp, half_q,
-                          one_dof_coordinates, quaternion_joints, rotation, with_derivative_algorithms)
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
+                          apply_jacobians, call_keywords, configuration_jacobians, elementwise_arguments,
+                          elementwise_jvp, gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints,
+                          rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -184,6 +190,8 @@ class Handle:
         return out[0] if len(out) == 1 else tuple(out)
 
     def _call(self, op, args, kwargs):
+        if op in GAUSS_NEWTON_RULES:
+            return _custom_vjp_call(self, op, args, kwargs)
         return _custom_call(self, op, args, kwargs, _RULES.get(op, _no_derivative))
 
     # ---- the coordinates and the tangent space (module doc)
@@ -245,6 +253,57 @@ def _custom_call(h, op, args, kwargs, jvp_rule):
     return f(*[kw[n] for n in names])
 
 
+def _custom_vjp_call(h, op, args, kwargs):
+    """a Gauss–Newton cost (GAUSS_NEWTON_RULES) as a jax.custom_vjp function of its arrays: reverse mode
+    through its value (_gauss_newton_vjp); its grad and H are values, so a cotangent on them raises
+    (the symbolic zeros tell which outputs were used)"""
+    kw, names = _bind(h, op, args, kwargs)
+    perturbed = {}  # which arrays are differentiated (known when fwd is traced)
+
+    @jax.custom_vjp
+    def f(*arrays):
+        return h._values(op, (), _with(kw, names, arrays))
+
+    def fwd(*primals):  # CustomVJPPrimal: value, and whether it is differentiated
+        arrays = tuple(p.value for p in primals)
+        perturbed.update({n: p.perturbed for n, p in zip(names, primals)})
+        out = h._values(op, (), _with(kw, names, arrays))
+        return out, (arrays, out)
+
+    def bwd(res, cotangents):
+        arrays, out = res
+        return _gauss_newton_vjp(h, op, _with(kw, names, arrays), names, perturbed, arrays, out, cotangents)
+
+    f.defvjp(fwd, bwd, symbolic_zeros=True)
+    return f(*[kw[n] for n in names])
+
+
+def _gauss_newton_vjp(h, op, call, names, perturbed, arrays, out, cotangents):
+    """the arrays' cotangents of a Gauss–Newton cost from its value's (_frameworks.gauss_newton_value_vjp)"""
+    if not all(_zero(c) for c in cotangents[1:]):
+        raise NotImplementedError(f"rbdkit.jax: {op}'s grad and H outputs are values (H is the Gauss–Newton "
+                                  f"approximation); differentiate its value")
+    _check_convention(h, op, call)
+    if perturbed.get("ee_offset"):
+        raise NotImplementedError("rbdkit.jax: ee_pos_cost is not differentiable with respect to ee_offset; treat "
+                                  "it as a constant (jax.lax.stop_gradient)")
+    if _zero(cotangents[0]):
+        return (None,) * len(arrays)
+    values = lambda o, kw, outputs=-1: _as_list(h._values(o, (), kw, outputs))  # noqa: E731
+    cast = {n: jnp.asarray(a, h.dtype) for n, a in zip(names, arrays)}
+    g = gauss_newton_value_vjp(jnp, h, op, dict(call, **cast), list(out), cotangents[0], values,
+                               lambda q, t: _tangent_map(h, q, t, "pinv_t"))
+    return tuple(_sum_to(g[n], jnp.shape(a)).astype(jnp.result_type(a)) if n in g and perturbed.get(n) else None
+                 for n, a in zip(names, arrays))
+
+
+def _sum_to(g, shape):
+    """g summed over the axes a broadcast added to an array of `shape` (the array's cotangent)"""
+    g = g.sum(tuple(range(g.ndim - len(shape)))) if g.ndim > len(shape) else g
+    axes = tuple(k for k, (a, b) in enumerate(zip(g.shape, shape)) if b == 1 and a != 1)
+    return g.sum(axes, keepdims=True) if axes else g
+
+
 def _no_derivative(h, op, call, names, tangents):
     """the rule of an operation that computes values only"""
     raise NotImplementedError(f"rbdkit.jax: {op} computes values only (it has no derivative rule); the "
@@ -270,16 +329,17 @@ def _assemble(pieces, n, batch, dtype):
 
 def _tangent_map(h, q, x, kind):
     """the linear maps of the coordinates at q (module doc), applied to x over leading axes:
-    "to_tangent" E⁺ x (x: nq -> nv), "from_tangent" E x (nv -> nq), "transpose" Eᵀ x (nq -> nv)"""
+    "to_tangent" E⁺ x (x: nq -> nv), "from_tangent" E x (nv -> nq), "transpose" Eᵀ x (nq -> nv),
+    "pinv_t" E⁺ᵀ x (nv -> nq: a tangent-space cotangent on the coordinates)"""
     q, x = jnp.asarray(q), jnp.asarray(x)
     batch = jnp.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     dtype = jnp.result_type(q, x)
-    to_q = kind == "from_tangent"
+    to_q = kind in ("from_tangent", "pinv_t")
     vi, qi = h._vi, h._qi
     pieces = [(list(qi if to_q else vi), x[..., vi if to_q else qi])] if len(vi) else []
     T = lambda A, y: jnp.einsum("...ji,...j->...i", A, y)  # Aᵀ y
     N = lambda A, y: jnp.einsum("...ij,...j->...i", A, y)  # A y
-    rot_scale = {"to_tangent": 4.0, "from_tangent": 1.0, "transpose": 1.0}[kind]
+    rot_scale = {"to_tangent": 4.0, "from_tangent": 1.0, "transpose": 1.0, "pinv_t": 4.0}[kind]
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq  # the quaternion's first coordinate
         Q = half_q(jnp, q[..., qq:qq + 4])
@@ -290,8 +350,8 @@ def _tangent_map(h, q, x, kind):
             else:
                 pieces.append((list(range(iv, iv + 3)), T(R, x[..., iq:iq + 3])))
         ivr = iv + 3 if joint == "free" else iv  # the rotation's first tangent index
-        if to_q:
-            pieces.append((list(range(qq, qq + 4)), N(Q, x[..., ivr:ivr + 3])))
+        if to_q:  # E: ½Q; E⁺ᵀ = 4 (½Q) for a unit quaternion
+            pieces.append((list(range(qq, qq + 4)), rot_scale * N(Q, x[..., ivr:ivr + 3])))
         else:  # E⁺ = (QᵀQ/4)⁻¹ Qᵀ/2 = 4 (Q/2)ᵀ for a unit quaternion
             pieces.append((list(range(ivr, ivr + 3)), rot_scale * T(Q, x[..., qq:qq + 4])))
     return _assemble(pieces, h.nq if to_q else h.nv, batch, dtype)

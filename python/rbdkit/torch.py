@@ -16,8 +16,9 @@ Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M), forwar
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), the
 integrator and plant_step for every scheme ([A | B]), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
-end_effector_pose, and the quadratic costs and log barriers with respect to
-every array (rbdkit.jax's module doc lists how). Gradients with respect
+end_effector_pose, the quadratic costs and log barriers with respect to every
+array, and the value of the Gauss–Newton costs (quadratic_state_cost_tangent,
+com_cost, momentum_cost, ee_pos_cost; rbdkit.jax's module doc lists how). Gradients with respect
 to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
 tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
 along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
@@ -35,10 +36,10 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, add_operation_methods, call_keywords,
-                          configuration_jacobians, elementwise_arguments, elementwise_vjp, half_q,
-                          one_dof_coordinates, quaternion_joints, rotation, transpose_jacobians,
-                          with_derivative_algorithms)
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
+                          call_keywords, configuration_jacobians, elementwise_arguments, elementwise_vjp,
+                          gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints, rotation,
+                          transpose_jacobians, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
@@ -96,6 +97,7 @@ def _shapes(flat, ranks):
 
 def _setup_context(ctx, inputs, output):
     xs, handle, op, slots = inputs[:4]
+    ctx.set_materialize_grads(False)  # an output not used gets None, not zeros (the Gauss–Newton costs' rule)
     ctx.save_for_backward(*xs, *output)
     ctx.n_in = len(xs)
     ctx.call = (op, list(slots), inputs[-1])
@@ -114,10 +116,12 @@ def _backward(ctx, grads):
     if h is None or rule is None:
         raise NotImplementedError(f"rbdkit.torch: {name} computes values only (it has no derivative rule); the "
                                   f"differentiable operations are {', '.join(sorted(_RULES))}")
+    if all(g is None for g in grads):  # no output is used
+        return ([None] * len(slots), *ctx.rest)
     sig = [a[0] for a in _SIGNATURES[name]]
     call = {sig[k]: x for k, x in zip(slots, xs)}
     kw = dict(_PARAMS[params])
-    grads_by_name = rule(h, name, call, kw, [g for g in grads], outs)
+    grads_by_name = rule(h, name, call, kw, list(grads), outs)
     return ([grads_by_name.get(sig[k]) for k in slots], *ctx.rest)
 
 
@@ -217,6 +221,9 @@ class Handle:
                 if name != "q" and isinstance(v, torch.Tensor) and v.requires_grad:
                     raise NotImplementedError(f"rbdkit.torch: {op} is differentiable with respect to q only, not "
                                               f"{name}; pass {name}.detach()")
+        if op == "ee_pos_cost" and isinstance(kw.get("ee_offset"), torch.Tensor) and kw["ee_offset"].requires_grad:
+            raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
+                                      "pass ee_offset.detach()")
         if isinstance(kw.get("f_ext"), torch.Tensor) and kw["f_ext"].requires_grad and op in _RULES:
             raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
                                       f"yet; pass f_ext.detach()")
@@ -226,7 +233,7 @@ class Handle:
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
     def tangent_gradient(self, q, grad_q):
         """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)"""
-        return _tangent_map(self, q, grad_q, "transpose")
+        return _tangent_map(self, torch.as_tensor(q), torch.as_tensor(grad_q), "transpose")
 
     def __repr__(self):
         return f"<rbdkit.torch.Handle of {self.model!r}: dtype={self.dtype}>"
@@ -332,3 +339,19 @@ def _elementwise_vjp(h, op, call, kw, grads, outs):
 
 
 _RULES.update({op: _elementwise_vjp for op in ELEMENTWISE_RULES})
+
+
+def _gauss_newton_vjp(h, op, call, kw, grads, outs):
+    """the Gauss–Newton costs: through their value (_frameworks.gauss_newton_value_vjp); their grad and H
+    are values"""
+    if any(g is not None for g in grads[1:]):
+        raise NotImplementedError(f"rbdkit.torch: {op}'s grad and H outputs are values (H is the Gauss–Newton "
+                                  f"approximation); differentiate its value")
+    if grads[0] is None:
+        return {}
+    args = dict(kw, **{k: v.detach() for k, v in call.items()})
+    return gauss_newton_value_vjp(torch, h, op, args, outs, grads[0], lambda o, a, outputs=-1: h._values(o, a, outputs),
+                                  lambda q, t: _tangent_map(h, q, t, "pinv_T"))
+
+
+_RULES.update({op: _gauss_newton_vjp for op in GAUSS_NEWTON_RULES})

@@ -48,6 +48,40 @@ def elementwise_cases(h, seed=0):
     return cases
 
 
+def gauss_newton_cases(h, seed=0):
+    """(op, arrays {name: value}) for the Gauss–Newton costs of handle h (a framework's): states on the
+    manifold, random targets and positive weights"""
+    rng = np.random.default_rng(seed)
+    (q, q_des), (qd, qd_des) = states(h, 2, seed)[:2]
+    return [("quadratic_state_cost_tangent", {"x": np.concatenate([q, qd]), "x_des": np.concatenate([q_des, qd_des]),
+                                              "Q": rng.uniform(0.5, 2, 2 * h.nv)}),
+            ("com_cost", {"q": q, "p_des": rng.standard_normal(3), "W": rng.uniform(0.5, 2, 3)}),
+            ("momentum_cost", {"q": q, "qd": qd, "h_des": rng.standard_normal(6), "W": rng.uniform(0.5, 2, 6)}),
+            ("ee_pos_cost", {"q": q, "p_des": rng.standard_normal(3), "W": rng.uniform(0.5, 2, 3)})]
+
+
+def tangent_difference(h, f, name, x, eps=1e-5):
+    """∂f/∂x by central differences in the tangent space where x holds a configuration (q, or the q
+    part of a state x or x_des), plainly elsewhere"""
+    nq = h.nq
+    if name == "q":
+        return central_difference(f, x, eps, **on_manifold(h))
+    if name in ("x", "x_des"):
+        step = lambda x, d: np.concatenate([h.numpy.rbd.integrate(x[:nq], d[:h.nv]), x[nq:] + d[h.nv:]])  # noqa: E731
+        return central_difference(f, x, eps, step=step, n=2 * h.nv)
+    return central_difference(f, x, eps)
+
+
+def to_tangent_gradient(h, name, x, g):
+    """a gradient on x's coordinates (a framework's) as the tangent-space one tangent_difference gives"""
+    g = np.asarray(g.detach() if hasattr(g, "detach") else g)
+    if name == "q":
+        return np.asarray(h.tangent_gradient(x, g))
+    if name in ("x", "x_des"):
+        return np.concatenate([np.asarray(h.tangent_gradient(x[:h.nq], g[:h.nq])), g[h.nq:]])
+    return g
+
+
 def load(name, floating):
     if name in rbdkit.robots.names():
         return rbdkit.robots.load(name, floating_base=floating)

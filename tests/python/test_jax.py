@@ -19,7 +19,8 @@ import rbdkit.jax as rj  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 from framework_cases import (CONFIGURATION_CASES, SCHEMES, Handles, central_difference, configuration_call,  # noqa: E402
-                             elementwise_cases, import_without, on_manifold, rel, states)
+                             elementwise_cases, gauss_newton_cases, import_without, on_manifold, rel, states,
+                             tangent_difference, to_tangent_gradient)
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
 # spherical, helical, planar (prismatic and continuous) and mimic joints
@@ -217,6 +218,24 @@ def test_cost_and_barrier_derivatives_against_central_differences(name, floating
                     return np.asarray(f_np(*args)[o])
                 Jn = central_difference(one, arrays[k], eps=1e-6)
                 assert rel(Jf[o][k], Jn) < 1e-6 and rel(Jr[o][k], Jn) < 1e-6, (op, k, o)
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
+def test_gauss_newton_cost_values_differentiate_against_central_differences(name, floating):
+    h = handle(name, floating)
+    for op, arrays in gauss_newton_cases(h, seed=12):
+        names = list(arrays)
+        f = lambda *a: getattr(h, op)(**dict(zip(names, a)))[0]  # noqa: E731
+        grads = jax.jit(jax.grad(f, argnums=tuple(range(len(names)))))(*arrays.values())
+        for k, n in enumerate(names):
+            def value(z, n=n):
+                return getattr(h.numpy, op)(**dict(arrays, **{n: z}))[0]
+            assert rel(to_tangent_gradient(h, n, arrays[n], grads[k]), tangent_difference(h, value, n, arrays[n])) \
+                < 1e-6, (op, n)
+    # grad and H are values: a gradient through them says so
+    q = arrays["q"]
+    with pytest.raises(NotImplementedError, match="ee_pos_cost's grad and H outputs are values"):
+        jax.grad(lambda q: jnp.sum(h.ee_pos_cost(q, arrays["p_des"], arrays["W"])[1]))(q)
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])

@@ -17,7 +17,8 @@ import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
 from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, Handles, central_difference,  # noqa: E402
-                             configuration_call, elementwise_cases, import_without, rel, states)
+                             configuration_call, elementwise_cases, gauss_newton_cases, import_without, rel, states,
+                             tangent_difference, to_tangent_gradient)
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -78,6 +79,10 @@ def test_gradcheck(name, floating):
     for op, arrays, mu in elementwise_cases(h.numpy):
         kw = {} if mu is None else {"mu": mu}
         assert torch.autograd.gradcheck(lambda *a: getattr(h, op)(*a, **kw), tuple(tensors(*arrays))), op
+    for op, arrays in gauss_newton_cases(h):
+        names = list(arrays)
+        assert torch.autograd.gradcheck(lambda *a: getattr(h, op)(**dict(zip(names, a)))[0],
+                                        tuple(tensors(*arrays.values()))), op
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
@@ -110,6 +115,21 @@ def test_quaternion_models_against_central_differences(name, floating):
         sum((o * torch.tensor(w)).sum() for w, o in zip(ws, f(h, tq))).backward()
         g = central_difference(lambda z: sum(np.sum(w * o) for w, o in zip(ws, f(h.numpy, z))), q, **manifold)
         assert rel(h.tangent_gradient(tq.detach(), tq.grad), g) < 1e-6, (op, kw)
+
+
+@pytest.mark.parametrize("name,floating", [("hyq", True)])
+def test_gauss_newton_cost_values_on_a_floating_base(name, floating):
+    h = handle(name, floating)
+    for op, arrays in gauss_newton_cases(h, seed=13):
+        t = dict(zip(arrays, tensors(*arrays.values())))
+        getattr(h, op)(**t)[0].backward()
+        for n, x in arrays.items():
+            def value(z, n=n):
+                return getattr(h.numpy, op)(**dict(arrays, **{n: z}))[0]
+            assert rel(to_tangent_gradient(h, n, x, t[n].grad), tangent_difference(h, value, n, x)) < 1e-6, (op, n)
+    with pytest.raises(RuntimeError, match="com_cost's grad and H outputs are values"):
+        q = torch.tensor(arrays["q"], requires_grad=True)
+        h.com_cost(q, torch.zeros(3, dtype=torch.float64), torch.ones(3, dtype=torch.float64))[1].sum().backward()
 
 
 def test_torch_compile_traces_without_graph_breaks():
