@@ -48,7 +48,9 @@ cmake -S . -B build/sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBDKIT_CUDA_CHE
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DCMAKE_CXX_FLAGS="$san -DRBDKIT_ENGINE_NO_FLATTEN" -DCMAKE_EXE_LINKER_FLAGS="$san" >/dev/null
 cmake --build build/sanitize -j "$JOBS"
-(cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E find_package_consumer)
+# (Atlas's cases are left to the plain build's ctest above: under the sanitizers they took 150 s of the
+# 360 core-seconds, for the code paths floating HyQ already covers)
+(cd build/sanitize && ctest --output-on-failure -j "$JOBS" -E "find_package_consumer|atlas")
 
 # ---- fuzzing (libFuzzer, clang, ASan/UBSan): the URDF reader and ModelBuilder,
 # saved regression inputs first, then up to 20 s per target (scripts/fuzz.sh)

@@ -103,7 +103,11 @@ def main():
     a = ap.parse_args()
     robots = ROBOTS[:1] + ROBOTS[3:4] if a.quick else ROBOTS
     if a.robots:
-        robots = [r for r in ROBOTS if r[0] + ("_floating" if r[1] else "") in a.robots.split(",")]
+        known = {r[0] + ("_floating" if r[1] else ""): r for r in ROBOTS}
+        unknown = [n for n in a.robots.split(",") if n not in known]
+        if unknown:
+            ap.error(f"--robots: unknown {', '.join(unknown)}; expected some of {', '.join(known)}")
+        robots = [known[n] for n in a.robots.split(",")]
     batches = (1, 256, 4096) if a.quick else BATCHES
     dev = device_module(a.arrays)
     warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias

@@ -4,10 +4,12 @@ of a floating HyQ), an all-gather puts the shards back together, and rank 0
 checks that the result equals the unsharded call.
 
     python3 examples/torch_distributed.py [--world 2] [--batch 64]
+    torchrun --standalone --nproc-per-node 2 examples/torch_distributed.py [--batch 64]
 
-It starts its own processes (torch.multiprocessing, gloo, on this machine).
-Under torchrun, on one or several machines, the same `evaluate` runs with
-the rank and world size torchrun sets (docs/scaling.md).
+Started plainly, it starts its own processes (torch.multiprocessing, gloo,
+on this machine). Under torchrun (RANK and WORLD_SIZE set), on one or several
+machines, each process is one rank of torchrun's group and runs the same
+`evaluate` (docs/scaling.md).
 """
 
 import argparse
@@ -45,17 +47,31 @@ def evaluate(rank, world, B):
     return out, h, (q, qd, u)
 
 
+def check(rank, world, B):
+    """evaluate, then on rank 0: (whether the gathered result equals the unsharded call, the shapes)"""
+    (qdd, x_next), h, (q, qd, u) = evaluate(rank, world, B)
+    if rank != 0:
+        return None
+    same = torch.equal(qdd, h.forward_dynamics(q, qd, u)) and torch.equal(x_next, h.integrator(q, qd, u, 0.01, "rk4"))
+    return same, tuple(qdd.shape), tuple(x_next.shape)
+
+
 def worker(rank, world, B, port, result):
     os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port))
     dist.init_process_group("gloo", rank=rank, world_size=world)
     try:
-        (qdd, x_next), h, (q, qd, u) = evaluate(rank, world, B)
-        if rank == 0:
-            same = (torch.equal(qdd, h.forward_dynamics(q, qd, u))
-                    and torch.equal(x_next, h.integrator(q, qd, u, 0.01, "rk4")))
-            result.put((same, tuple(qdd.shape), tuple(x_next.shape)))
+        r = check(rank, world, B)
+        if r is not None:
+            result.put(r)
     finally:
         dist.destroy_process_group()
+
+
+def report(world, B, same, s1, s2):
+    print(f"{world} processes (gloo), {B} knot points: qdd {s1}, x+ {s2}; "
+          f"all-gathered shards {'equal' if same else 'DIFFER FROM'} the unsharded call")
+    if not same:
+        raise SystemExit(1)
 
 
 def free_port():
@@ -69,16 +85,24 @@ def main(argv=None):
     p.add_argument("--world", type=int, default=2)
     p.add_argument("--batch", type=int, default=64)
     o = p.parse_args(argv)
+    if "RANK" in os.environ and "WORLD_SIZE" in os.environ:  # under torchrun: one rank of its group
+        rank, world = int(os.environ["RANK"]), int(os.environ["WORLD_SIZE"])
+        if o.batch % world:
+            raise SystemExit("--batch must be a multiple of the number of processes")
+        dist.init_process_group("gloo")  # MASTER_ADDR and MASTER_PORT from torchrun
+        try:
+            r = check(rank, world, o.batch)
+        finally:
+            dist.destroy_process_group()
+        if r is not None:
+            report(world, o.batch, *r)
+        return
     if o.batch % o.world:
         raise SystemExit("--batch must be a multiple of --world")
     ctx = mp.get_context("spawn")
     result = ctx.Queue()
     mp.start_processes(worker, args=(o.world, o.batch, free_port(), result), nprocs=o.world, start_method="spawn")
-    same, s1, s2 = result.get(timeout=60)
-    print(f"{o.world} processes (gloo), {o.batch} knot points: qdd {s1}, x+ {s2}; "
-          f"all-gathered shards {'equal' if same else 'DIFFER FROM'} the unsharded call")
-    if not same:
-        raise SystemExit(1)
+    report(o.world, o.batch, *result.get(timeout=60))
 
 
 if __name__ == "__main__":

@@ -33,6 +33,10 @@ gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
 # ---- build: the library with the real kernels, the C++ tests
 prebuilt=${GPU_CHECK_PREBUILT:-0}
 if [[ "$prebuilt" == 1 ]]; then
+  [[ -f build/gpu/CMakeCache.txt ]] || {
+    echo "gpu-check: GPU_CHECK_PREBUILT=1 but build/gpu/CMakeCache.txt is missing: copy scripts/gpu-prebuild.sh's outputs here" >&2
+    exit 2
+  }
   ARCH=$(sed -n 's/^CMAKE_CUDA_ARCHITECTURES:[A-Z]*=//p' build/gpu/CMakeCache.txt)
   summary+=("| build (CMAKE_CUDA_ARCHITECTURES=$ARCH) | built elsewhere (scripts/gpu-prebuild.sh), copied |")
   export LD_LIBRARY_PATH="$PWD/.gpu/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"  # its tinyxml2

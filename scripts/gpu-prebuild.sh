@@ -32,5 +32,5 @@ rm -rf .gpu && mkdir -p .gpu/wheel .gpu/lib
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip wheel -q --no-build-isolation --no-deps \
   -w .gpu/wheel . -Cbuild-dir=build/gpu-py -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/gpu/librbdkit.a"
 lib=$(ldd build/gpu/tests/cpp/rbdkit_tests | awk '/libtinyxml2/ {print $3}')
-cp -L "$lib" .gpu/lib/
+[[ -z "$lib" ]] || cp -L "$lib" .gpu/lib/  # (none to copy where tinyxml2 is linked statically)
 du -sh .gpu build/gpu/cuda_kernel_check build/gpu/tests/cpp/rbdkit_tests

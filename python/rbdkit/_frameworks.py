@@ -268,7 +268,12 @@ def gauss_newton_value_vjp(xp, h, op, call, outs, cv, values, pinv_t):
     if op == "com_cost":  # ½ Σ W r², r = com(q) - p_des
         r = values("com", {"q": q})[0] - call["p_des"]
     else:  # ee_pos_cost: r = p_ee(q) - p_des, p_ee the end effector's tool point
-        ee = {"ee_joint_names": None if call.get("ee_joint_name") is None else [call["ee_joint_name"]],
-              "ee_offsets": None if call.get("ee_offset") is None else call["ee_offset"][..., None, :]}
+        name, offset = call.get("ee_joint_name"), call.get("ee_offset")
+        if name is None:  # the first of the default end effectors (every leaf): the offset given to each
+            ee = {"ee_offsets": None if offset is None else
+                  offset[..., None, :] * xp.ones((values("end_effector_pose", {"q": q})[0].shape[-2], 1),
+                                                 dtype=q.dtype)}
+        else:
+            ee = {"ee_joint_names": [name], "ee_offsets": None if offset is None else offset[..., None, :]}
         r = values("end_effector_pose", dict(ee, q=q))[0][..., 0, :3] - call["p_des"]
     return {"q": pinv_t(q, c * g[..., :nv]), "p_des": -c * W * r, "W": 0.5 * c * r * r}

@@ -248,9 +248,13 @@ def _custom_call(h, op, args, kwargs, jvp_rule):
     def f(*arrays):
         return h._values(op, (), _with(kw, names, arrays))
 
-    f.defjvp(lambda primals, tangents: jvp_rule(h, op, _with(kw, names, primals), names, tangents),
-             symbolic_zeros=True)
-    return f(*[kw[n] for n in names])
+    def rule(primals, tangents):
+        out, dout = jvp_rule(h, op, _with(kw, names, primals), names, tangents)
+        # the tangents in the outputs' dtype (a float32 handle's inputs may be float64 in 64-bit mode)
+        return out, jax.tree.map(lambda d, o: d.astype(o.dtype), dout, out)
+
+    f.defjvp(rule, symbolic_zeros=True)
+    return f(*[jnp.asarray(kw[n]) for n in names])
 
 
 def _custom_vjp_call(h, op, args, kwargs):
@@ -275,7 +279,7 @@ def _custom_vjp_call(h, op, args, kwargs):
         return _gauss_newton_vjp(h, op, _with(kw, names, arrays), names, perturbed, arrays, out, cotangents)
 
     f.defvjp(fwd, bwd, symbolic_zeros=True)
-    return f(*[kw[n] for n in names])
+    return f(*[jnp.asarray(kw[n]) for n in names])
 
 
 def _gauss_newton_vjp(h, op, call, names, perturbed, arrays, out, cotangents):

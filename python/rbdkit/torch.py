@@ -26,6 +26,7 @@ other operations compute values; a backward pass through one raises.
 """
 
 import atexit
+import json
 import math
 
 import numpy as np
@@ -47,15 +48,13 @@ _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by oper
 # a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
-# the calls' parameters (name, value), interned: a call carries its index, for the backward formulas
-_PARAMS, _PARAM_INDEX = [], {}
 atexit.register(_HANDLES.clear)  # released at exit, before the extension's teardown
 _core.disable_leak_warnings()  # (those handles are kept on purpose)
 
 
 # ---------------------------------------------------------------- the custom operator
 
-def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks, params=-1):
+def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks, params=""):
     """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
     returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
     dtype = _HANDLES[handle].dtype
@@ -75,9 +74,9 @@ def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shape
 @torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
 def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
           choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
-          out_ranks: list[int], params: int) -> list[torch.Tensor]:
+          out_ranks: list[int], params: str) -> list[torch.Tensor]:
     """the custom operator: _kernel, with the fake kernel and the autograd formulas below (params: the
-    index of the call's parameters in _PARAMS)"""
+    call's parameters as JSON, for the backward formulas)"""
     return _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks)
 
 
@@ -118,9 +117,12 @@ def _backward(ctx, grads):
                                   f"differentiable operations are {', '.join(sorted(_RULES))}")
     if all(g is None for g in grads):  # no output is used
         return ([None] * len(slots), *ctx.rest)
+    if torch.is_grad_enabled():  # backward(create_graph=True): a second derivative is asked for
+        raise NotImplementedError(f"rbdkit.torch: {name}'s derivative rule is first order; second derivatives "
+                                  f"(create_graph=True, double backward) through it are not available")
     sig = [a[0] for a in _SIGNATURES[name]]
     call = {sig[k]: x for k, x in zip(slots, xs)}
-    kw = dict(_PARAMS[params])
+    kw = dict(json.loads(params))
     grads_by_name = rule(h, name, call, kw, list(grads), outs)
     return ([grads_by_name.get(sig[k]) for k in slots], *ctx.rest)
 
@@ -131,18 +133,16 @@ _call.register_autograd(_backward, setup_context=_setup_context)
 @torch._dynamo.assume_constant_result
 def _plan(address, op, params, arrays, outputs):
     """a call's layout (OpHandle.plan) from its parameters (name, value) and the names of its arrays,
-    and the parameters' index in _PARAMS; constant for torch.compile (parameters are Python values,
-    fixed at trace time)"""
+    and the parameters as JSON; constant for torch.compile (parameters are Python values, fixed at
+    trace time)"""
     h = _HANDLES[address]
     kw = dict(params)
     kw.update({name: 0 for name in arrays})  # the arrays' places (plan does not read them)
     op_id, planned, reals, choices, ee, outs = h._core.plan(op, (), kw, outputs)
     sig = _SIGNATURES[op]
-    if params not in _PARAM_INDEX:
-        _PARAM_INDEX[params] = len(_PARAMS)
-        _PARAMS.append(params)
     return (op_id, tuple((k, sig[k][0], tuple(shape)) for k, _, shape in planned), tuple(reals), tuple(choices),
-            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs), _PARAM_INDEX[params])
+            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs),
+            json.dumps(params, default=lambda v: v.item() if hasattr(v, "item") else str(v)))
 
 
 # ---------------------------------------------------------------- the handle
@@ -212,7 +212,8 @@ class Handle:
 
     def _method_call(self, op, args, kwargs):
         kw = call_keywords(op, [a[0] for a in _SIGNATURES[op]], args, kwargs)
-        if op in _RULES and kw.get("output_convention", self.output_convention) == "mujoco" and self._quats \
+        if op in _RULES and op not in ELEMENTWISE_RULES and self._quats \
+                and kw.get("output_convention", self.output_convention) == "mujoco" \
                 and any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values()):
             raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
                                       f"with free-flyer or spherical joints is not available")

@@ -238,6 +238,25 @@ def test_gauss_newton_cost_values_differentiate_against_central_differences(name
         jax.grad(lambda q: jnp.sum(h.ee_pos_cost(q, arrays["p_des"], arrays["W"])[1]))(q)
 
 
+def test_derivative_rules_with_lists_float32_and_default_end_effectors():
+    h = handle("hyq", True)
+    q = states(h, 1, seed=14)[0][0]
+    # arrays given as Python lists
+    g = jax.grad(lambda p: h.com_cost(q, p, [1.0, 2.0, 3.0])[0])([0.1, 0.2, 0.3])
+    assert len(g) == 3 and all(np.isfinite(np.asarray(x)) for x in g)
+    # a float32 handle with float64 inputs in 64-bit mode: the tangents in the outputs' dtype
+    h32 = handle("hyq", True, "float32")
+    J = jax.jacfwd(lambda q: h32.crba(q))(q)
+    assert J.dtype == jnp.float32 and rel(J, jax.jacfwd(lambda q: h.crba(q))(q)) < 1e-3
+    aba = lambda h, q: h.aba(q, np.zeros(h.nv), np.ones(h.nv))  # noqa: E731
+    assert rel(jax.jacrev(lambda q: aba(h32, q))(q), jax.jacrev(lambda q: aba(h, q))(q)) < 1e-3
+    # ee_pos_cost's default end effector with a tool offset (the model has several end effectors)
+    p_des, W, off = np.array([0.1, 0.2, 0.3]), np.array([1.0, 2.0, 3.0]), np.array([0.05, -0.02, 0.1])
+    gq = jax.grad(lambda q: h.ee_pos_cost(q, p_des, W, ee_offset=off)[0])(q)
+    fd = central_difference(lambda z: h.numpy.ee_pos_cost(z, p_des, W, ee_offset=off)[0], q, **on_manifold(h))
+    assert rel(h.tangent_gradient(q, gq), fd) < 1e-6
+
+
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
 def test_coordinate_and_tangent_maps(name, floating):
     h = handle(name, floating)

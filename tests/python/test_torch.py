@@ -152,6 +152,8 @@ def test_errors_are_clear():
     q, qd, u = tensors(*states(h, 1))
     with pytest.raises(RuntimeError, match="coriolis_matrix computes values only"):
         h.coriolis_matrix(q, qd).sum().backward()
+    with pytest.raises(RuntimeError, match="first order; second derivatives"):
+        torch.autograd.functional.hessian(lambda q: h.com(q)[2], q.detach()[0])
     with pytest.raises(NotImplementedError, match="differentiable with respect to q only, not ee_offsets"):
         h.end_effector_pose(q, ee_offsets=torch.zeros(1, 3, dtype=torch.float64, requires_grad=True))
     with pytest.raises(NotImplementedError, match="f_ext"):
@@ -178,6 +180,15 @@ def test_torch_distributed_shards_equal_the_unsharded_call():
                        cwd="/", timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "all-gathered shards equal the unsharded call" in r.stdout
+
+
+def test_torch_distributed_under_torchrun():
+    """the same example as ranks of torchrun's group (docs/scaling.md), 2 processes on this machine"""
+    script = os.path.join(ROOT, "examples", "torch_distributed.py")
+    r = subprocess.run([sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node", "2",
+                        script, "--batch", "16"], capture_output=True, text=True, cwd="/", timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "2 processes (gloo), 16 knot points" in r.stdout and "equal the unsharded call" in r.stdout
 
 
 def test_rollout_example_gradient_is_the_analytical_chain():
