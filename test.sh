@@ -72,4 +72,5 @@ echo "building the Python package (pip install .) ..."
 # (linked to build/cpp's librbdkit.a: the library is not compiled a second time)
 PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip install -q --no-build-isolation . \
   -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/cpp/librbdkit.a"
-"$PY" -m pytest -q -p no:cacheprovider tests/python
+# (-n: one pytest worker per core, pytest-xdist)
+"$PY" -m pytest -q -p no:cacheprovider -n "$JOBS" tests/python

@@ -26,6 +26,7 @@ other operations compute values; a backward pass through one raises.
 """
 
 import atexit
+import functools
 import json
 import math
 
@@ -141,8 +142,23 @@ def _plan(address, op, params, arrays, outputs):
     op_id, planned, reals, choices, ee, outs = h._core.plan(op, (), kw, outputs)
     sig = _SIGNATURES[op]
     return (op_id, tuple((k, sig[k][0], tuple(shape)) for k, _, shape in planned), tuple(reals), tuple(choices),
-            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs),
-            json.dumps(params, default=lambda v: v.item() if hasattr(v, "item") else str(v)))
+            tuple(ee), tuple((o, tuple(shape)) for o, shape in outs), _params_json(params))
+
+
+def _params_json(params):
+    """a call's parameters ((name, value), ...) as JSON (cached where they are hashable: json.dumps costs
+    µs on every eager call)"""
+    try:
+        return _cached_params_json(params)
+    except TypeError:  # an unhashable value
+        return _dumps(params)
+
+
+def _dumps(params):
+    return json.dumps(params, default=lambda v: v.item() if hasattr(v, "item") else str(v))
+
+
+_cached_params_json = functools.lru_cache(maxsize=1024)(_dumps)
 
 
 # ---------------------------------------------------------------- the handle
