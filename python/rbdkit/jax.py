@@ -189,6 +189,11 @@ class Handle:
         out = _vary_like(out, xs)
         return out[0] if len(out) == 1 else tuple(out)
 
+    def _value_list(self, op, kwargs, outputs=-1):
+        """_values of a call given as keywords, as a list (the derivative rules' calls)"""
+        r = self._values(op, (), kwargs, outputs)
+        return list(r) if isinstance(r, tuple) else [r]
+
     def _call(self, op, args, kwargs):
         if op in GAUSS_NEWTON_RULES:
             return _custom_vjp_call(self, op, args, kwargs)
@@ -293,9 +298,8 @@ def _gauss_newton_vjp(h, op, call, names, perturbed, arrays, out, cotangents):
                                   "it as a constant (jax.lax.stop_gradient)")
     if _zero(cotangents[0]):
         return (None,) * len(arrays)
-    values = lambda o, kw, outputs=-1: _as_list(h._values(o, (), kw, outputs))  # noqa: E731
     cast = {n: jnp.asarray(a, h.dtype) for n, a in zip(names, arrays)}
-    g = gauss_newton_value_vjp(jnp, h, op, dict(call, **cast), list(out), cotangents[0], values,
+    g = gauss_newton_value_vjp(jnp, h, op, dict(call, **cast), list(out), cotangents[0], h._value_list,
                                lambda q, t: _tangent_map(h, q, t, "pinv_t"))
     return tuple(_sum_to(g[n], jnp.shape(a)).astype(jnp.result_type(a)) if n in g and perturbed.get(n) else None
                  for n, a in zip(names, arrays))
@@ -464,18 +468,13 @@ def _configuration_jvp(h, op, call, names, tangents):
         if n != "q" and not _zero(t):
             raise NotImplementedError(f"rbdkit.jax: {op} is differentiable with respect to q only, not {n}; "
                                       f"treat {n} as a constant (jax.lax.stop_gradient)")
-    values = lambda o, kw, outputs=-1: _as_list(h._values(o, (), kw, outputs))  # noqa: E731
-    outs, jacobians = configuration_jacobians(jnp, h, op, call, values)
+    outs, jacobians = configuration_jacobians(jnp, h, op, call, h._value_list)
     q = call["q"]
     dq = _to_tangent(h, q, _dense(dict(zip(names, tangents))["q"], q))
     douts = apply_jacobians(op, jacobians, dq)
     both = _vary_like(outs + douts, outs + douts)
     outs, douts = both[:len(outs)], both[len(outs):]
     return (outs[0], douts[0]) if len(outs) == 1 else (tuple(outs), tuple(douts))
-
-
-def _as_list(r):
-    return list(r) if isinstance(r, tuple) else [r]
 
 
 def _elementwise_jvp(h, op, call, names, tangents):

@@ -339,7 +339,7 @@ def _configuration_vjp(h, op, call, kw, grads, outs):
     cotangents through their Jacobians (_frameworks.configuration_jacobians)"""
     q = call["q"]
     args = dict(kw, **{k: v.detach() for k, v in call.items()})
-    _, jacobians = configuration_jacobians(torch, h, op, args, lambda o, a, outputs=-1: h._values(o, a, outputs))
+    _, jacobians = configuration_jacobians(torch, h, op, args, h._values)
     g = transpose_jacobians(op, jacobians, grads)
     return {"q": None if g is None else _tangent_map(h, q, g, "pinv_T")}
 
@@ -367,7 +367,7 @@ def _gauss_newton_vjp(h, op, call, kw, grads, outs):
     if grads[0] is None:
         return {}
     args = dict(kw, **{k: v.detach() for k, v in call.items()})
-    return gauss_newton_value_vjp(torch, h, op, args, outs, grads[0], lambda o, a, outputs=-1: h._values(o, a, outputs),
+    return gauss_newton_value_vjp(torch, h, op, args, outs, grads[0], h._values,
                                   lambda q, t: _tangent_map(h, q, t, "pinv_T"))
 
 
