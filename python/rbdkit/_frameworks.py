@@ -48,7 +48,7 @@ def add_operation_methods(cls, call):
         ref = getattr(NumpyHandle, op)
 
         def method(self, *args, **kwargs):
-            if not self.numpy.has(op):
+            if op not in self.numpy._ops:
                 raise ValueError(f"{op}: this handle was not built with it; add '{OPERATION_ALGORITHM[op]}' to "
                                  f"algorithms")
             return getattr(self, call)(op, args, kwargs)

@@ -23,6 +23,15 @@ to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
 tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
 along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
 other operations compute values; a backward pass through one raises.
+
+Three routes to the same kernel and formulas. torch.compile traces the
+custom operator. An eager call that needs autograd records a plain
+torch.autograd.Function with the operator's formulas (the operator's Python
+dispatch would cost hundreds of µs). An eager call without autograd runs the
+kernel on the tensors' memory, its layout cached per operation and
+parameters (bench/frameworks.py: about 10 µs over the NumPy handle at B = 16);
+tensors it cannot take as they are (another dtype, not contiguous, leading
+shapes to broadcast) go through the general path, which converts them.
 """
 
 import atexit
@@ -46,6 +55,9 @@ from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
+_AUTOGRAD = object()  # Handle._eager: "this call needs autograd"
+_ARGUMENT_NAMES = {op: [a[0] for a in args] for op, args in _SIGNATURES.items()}
+_ARRAY_ARGUMENTS = {op: frozenset(a[0] for a in args if a[1] in ("array", "optional")) for op, args in _SIGNATURES.items()}
 # a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
@@ -131,6 +143,21 @@ def _backward(ctx, grads):
 _call.register_autograd(_backward, setup_context=_setup_context)
 
 
+class _EagerCall(torch.autograd.Function):
+    """the custom operator's kernel and autograd formulas as a plain autograd.Function, for eager calls
+    (a fraction of the operator's dispatch cost); torch.compile traces the operator instead"""
+
+    @staticmethod
+    def forward(ctx, rest, *xs):
+        outs = _kernel(list(xs), *rest)
+        _setup_context(ctx, (list(xs),) + tuple(rest), outs)
+        return tuple(outs)
+
+    @staticmethod
+    def backward(ctx, *grads):
+        return (None, *_backward(ctx, grads)[0])
+
+
 @torch._dynamo.assume_constant_result
 def _plan(address, op, params, arrays, outputs):
     """a call's layout (OpHandle.plan) from its parameters (name, value) and the names of its arrays,
@@ -180,6 +207,8 @@ class Handle:
         self._address = int(self._core.address)
         self._quats = quaternion_joints(self.model)
         self._vi, self._qi = one_dof_coordinates(self.model)  # lists: constants under torch.compile
+        self._identity_map = not self._quats and self.nq == self.nv and self._vi == self._qi == list(range(self.nv))
+        self._plans = {}  # (op, parameters, arrays present) -> the call's layout (_eager)
         _HANDLES[self._address] = self
 
     def available_operations(self):
@@ -188,8 +217,13 @@ class Handle:
     def has(self, name):
         return self.numpy.has(name)
 
-    def _values(self, op, kwargs, outputs=-1):
-        """the results of op (rbdkit.Handle's, or the outputs of mask `outputs`) as a list of tensors"""
+    def _values(self, op, kwargs, outputs=-1, eager_autograd=False):
+        """the results of op (rbdkit.Handle's, or the outputs of mask `outputs`) as a list of tensors
+        (eager_autograd: recorded for autograd by _EagerCall, not by the custom operator)"""
+        if not eager_autograd and not torch.compiler.is_compiling():
+            res = self._eager(op, kwargs, outputs)
+            if res is not None and res is not _AUTOGRAD:
+                return res
         kinds = {name: kind for name, kind, _ in _SIGNATURES[op]}
         tensors, params = {}, []
         for name, v in kwargs.items():
@@ -220,32 +254,88 @@ class Handle:
         flat = [d for _, s in outs for d in s]
         call = (xs, self._address, op_id, [k for k, _, _ in arrays], [o for o, _ in outs], list(reals),
                 list(choices), list(ee), list(batch), flat, [len(s) for _, s in outs], key)
-        # the custom operator where autograd or torch.compile needs it; its kernel directly otherwise
-        # (the operator's Python dispatch costs about 90 µs a call)
-        if torch.compiler.is_compiling() or (torch.is_grad_enabled() and any(x.requires_grad for x in xs)):
+        # the custom operator where torch.compile traces, _EagerCall for eager autograd, the kernel
+        # directly otherwise (the operator's Python dispatch costs about 90 µs a call)
+        if torch.compiler.is_compiling():
             return list(_call(*call))
+        if torch.is_grad_enabled() and any(x.requires_grad for x in xs):
+            return list(_EagerCall.apply(call[1:], *xs)) if eager_autograd else list(_call(*call))
         return _kernel(*call)
 
     def _method_call(self, op, args, kwargs):
-        kw = call_keywords(op, [a[0] for a in _SIGNATURES[op]], args, kwargs)
-        if op in _RULES and op not in ELEMENTWISE_RULES and self._quats \
-                and kw.get("output_convention", self.output_convention) == "mujoco" \
-                and any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values()):
-            raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
-                                      f"with free-flyer or spherical joints is not available")
-        if op in CONFIGURATION_RULES:
-            for name, v in kw.items():
-                if name != "q" and isinstance(v, torch.Tensor) and v.requires_grad:
-                    raise NotImplementedError(f"rbdkit.torch: {op} is differentiable with respect to q only, not "
-                                              f"{name}; pass {name}.detach()")
-        if op == "ee_pos_cost" and isinstance(kw.get("ee_offset"), torch.Tensor) and kw["ee_offset"].requires_grad:
-            raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
-                                      "pass ee_offset.detach()")
-        if isinstance(kw.get("f_ext"), torch.Tensor) and kw["f_ext"].requires_grad and op in _RULES:
-            raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
-                                      f"yet; pass f_ext.detach()")
-        res = self._values(op, kw)
+        kw = call_keywords(op, _ARGUMENT_NAMES[op], args, kwargs)
+        res = None if torch.compiler.is_compiling() else self._eager(op, kw)
+        if res is None:  # torch.compile, or a call _eager leaves to the general path
+            grad = not torch.compiler.is_compiling() and torch.is_grad_enabled() and \
+                any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values())
+            res = _AUTOGRAD if grad else self._values(op, kw)
+        if res is _AUTOGRAD:
+            _check_differentiable(self, op, kw)
+            res = self._values(op, kw, eager_autograd=True)  # autograd without the operator's dispatch
         return res[0] if len(res) == 1 else tuple(res)
+
+    def _eager(self, op, kw, outputs=-1):
+        """the outputs of a call with no autograd, outside torch.compile, as a list: the kernel on the
+        tensors' memory, the call's layout cached per operation, parameters and arrays present (a few
+        µs on top of the engine). None where the general path (_values) must take it: an array that
+        is not a contiguous CPU tensor of the handle's dtype, leading shapes that need broadcasting, a
+        shape other than the planned one (the general path's message), an unhashable parameter;
+        _AUTOGRAD where a tensor requires grad and autograd is on"""
+        arrays, key, xs, grad = _ARRAY_ARGUMENTS[op], [op, outputs], [], torch.is_grad_enabled()
+        for name, v in kw.items():
+            if name in arrays and v is not None:
+                if not isinstance(v, torch.Tensor):
+                    return None
+                if grad and v.requires_grad:
+                    return _AUTOGRAD
+                xs.append(v)
+                key.append(name)
+            else:
+                key.append((name, tuple(v) if isinstance(v, list) else v))
+        try:
+            plan = self._plans.get(tuple(key))
+        except TypeError:  # an unhashable parameter
+            return None
+        if plan is None:
+            plan = self._eager_plan(op, kw, key, outputs)
+            if plan is None:
+                return None
+        raw, shapes, out_shapes = plan
+        dtype, lead = self.dtype, None
+        for x, shape in zip(xs, shapes):  # (arguments in the call's order: run_raw takes them so)
+            if not (x.is_cpu and x.dtype is dtype and x.is_contiguous()):
+                return None
+            if lead is None:
+                n = x.dim() - len(shape)
+                if n < 0 or x.shape[n:] != shape:
+                    return None
+                lead = tuple(x.shape[:n])
+            elif x.shape != lead + shape:
+                return None
+        lead = lead or ()
+        res = [torch.empty(*lead, *s, dtype=dtype) for s in out_shapes]  # (varargs: faster than a tuple)
+        raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
+        return res
+
+    def _eager_plan(self, op, kw, key, outputs):
+        """_eager's layout of a call (its arrays in the call's order), cached under key; None for a call
+        the general path must refuse"""
+        try:
+            op_id, planned, reals, choices, ee, outs = self._core.plan(
+                op, (), {n: (0 if isinstance(v, torch.Tensor) else v) for n, v in kw.items()}, outputs)
+        except (TypeError, ValueError):
+            return None
+        sig = _SIGNATURES[op]
+        shape_of = {sig[k][0]: (k, tuple(s)) for k, _, s in planned}
+        present = [n for n in key[2:] if isinstance(n, str)]
+        shapes, out_shapes = [shape_of[n][1] for n in present], [tuple(s) for _, s in outs]
+        raw = _core.RawCall(self._address, op_id, [shape_of[n][0] for n in present], [o for o, _ in outs], choices,
+                            ee, reals, [math.prod(s) for s in shapes], [math.prod(s) for s in out_shapes],
+                            8 if self.dtype is torch.float64 else 4)
+        plan = (raw, shapes, out_shapes)
+        if len(self._plans) < 4096:
+            self._plans[tuple(key)] = plan
+        return plan
 
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
     def tangent_gradient(self, q, grad_q):
@@ -259,10 +349,32 @@ class Handle:
 add_operation_methods(Handle, "_method_call")
 
 
+def _check_differentiable(h, op, kw):
+    """refuse, before the call, a derivative no rule gives (kw: the call, some tensor requiring grad)"""
+    grad = lambda name: isinstance(kw.get(name), torch.Tensor) and kw[name].requires_grad  # noqa: E731
+    if op in _RULES and op not in ELEMENTWISE_RULES and h._quats \
+            and kw.get("output_convention", h.output_convention) == "mujoco":
+        raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
+                                  f"with free-flyer or spherical joints is not available")
+    if op in CONFIGURATION_RULES:
+        for name in kw:
+            if name != "q" and grad(name):
+                raise NotImplementedError(f"rbdkit.torch: {op} is differentiable with respect to q only, not "
+                                          f"{name}; pass {name}.detach()")
+    if op == "ee_pos_cost" and grad("ee_offset"):
+        raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
+                                  "pass ee_offset.detach()")
+    if op in _RULES and grad("f_ext"):
+        raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
+                                  f"yet; pass f_ext.detach()")
+
+
 # ---------------------------------------------------------------- the coordinates' maps
 
 def _tangent_map(h, q, x, kind):
     """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv)"""
+    if h._identity_map:  # every joint's coordinates are its tangent
+        return x
     to_q = kind in ("pinv_T", "from_tangent")
     batch = torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     out = x.new_zeros(tuple(batch) + ((h.nq,) if to_q else (h.nv,)))
@@ -293,8 +405,8 @@ def _tangent_map(h, q, x, kind):
 # ---------------------------------------------------------------- backward formulas (reverse mode)
 
 def _mtv(A, y):
-    """Aᵀ y over leading axes"""
-    return torch.einsum("...ji,...j->...i", A, y)
+    """Aᵀ y over leading axes (a matmul: einsum costs tens of µs on small tensors)"""
+    return torch.matmul(y.unsqueeze(-2), A).squeeze(-2)
 
 
 def _dynamics_vjp(h, op, call, kw, grads, outs):

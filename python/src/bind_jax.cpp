@@ -28,6 +28,7 @@
 #include <exception>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rbdkit/handle/handle.hpp"
@@ -158,6 +159,58 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op,
 namespace nb = nanobind;
 using namespace nb::literals;
 
+namespace {
+
+// a call's layout fixed once (rbdkit.torch's eager calls, cached per operation and parameters):
+// calling it with the arrays' addresses (inputs, then outputs) and B runs rbdkit_run_raw, each array
+// B samples of its per-sample values (B = -1: one sample, no batch axis). The caller has checked the
+// arrays' shapes, dtype and contiguity.
+struct RawCall {
+  uintptr_t handle;
+  int64_t op;
+  std::vector<int64_t> slots, outputs, choices, ee;
+  std::vector<double> reals;
+  std::vector<long> in_values, out_values;  // per sample
+  size_t value_bytes;
+
+  RawCall(uintptr_t handle, int64_t op, std::vector<int64_t> slots, std::vector<int64_t> outputs,
+          std::vector<int64_t> choices, std::vector<int64_t> ee, std::vector<double> reals, std::vector<long> in_values,
+          std::vector<long> out_values, size_t value_bytes)
+      : handle(handle), op(op), slots(std::move(slots)), outputs(std::move(outputs)), choices(std::move(choices)),
+        ee(std::move(ee)), reals(std::move(reals)), in_values(std::move(in_values)), out_values(std::move(out_values)),
+        value_bytes(value_bytes) {
+    if (this->slots.size() != this->in_values.size() || this->outputs.size() != this->out_values.size())
+      throw std::invalid_argument("RawCall: one per-sample size per input and per output");
+  }
+
+  void operator()(const std::vector<uintptr_t>& ptrs, long B) const {
+    const size_t n_in = slots.size(), n_out = outputs.size();
+    if (ptrs.size() != n_in + n_out) throw nb::value_error("RawCall: expected one address per input and output");
+    const long samples = B < 0 ? 1 : B;
+    const void* in_p[ops::kMaxArgs];
+    void* out_p[ops::kMaxOutputs];
+    long in_c[ops::kMaxArgs], out_c[ops::kMaxOutputs];
+    if (n_in > size_t(ops::kMaxArgs) || n_out > size_t(ops::kMaxOutputs)) throw nb::value_error("RawCall: too many arrays");
+    for (size_t j = 0; j < n_in; ++j) in_p[j] = reinterpret_cast<const void*>(ptrs[j]), in_c[j] = samples * in_values[j];
+    for (size_t j = 0; j < n_out; ++j)
+      out_p[j] = reinterpret_cast<void*>(ptrs[n_in + j]), out_c[j] = samples * out_values[j];
+    bool invalid = false;
+    std::string err;
+    {
+      nb::gil_scoped_release nogil;
+      err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p, in_c, n_in, outputs.data(),
+                           out_p, out_c, n_out, reals.data(), reals.size(), choices.data(), choices.size(),
+                           ee.data(), ee.size(), B, value_bytes, invalid);
+    }
+    if (!err.empty()) {
+      if (invalid) throw nb::value_error(err.c_str());
+      throw std::runtime_error(err);
+    }
+  }
+};
+
+}  // namespace
+
 void bind_jax(nb::module_& m) {
   // rbdkit.jax and rbdkit.torch keep their handles for the life of the process (compiled calls hold
   // their addresses), and the frameworks' caches may hold them past the atexit release: nanobind's
@@ -193,6 +246,13 @@ void bind_jax(nb::module_& m) {
     }
   }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "out_counts"_a, "reals"_a,
      "choices"_a, "ee"_a, "B"_a, "value_bytes"_a);
+
+  nb::class_<RawCall>(m, "RawCall")
+      .def(nb::init<uintptr_t, int64_t, std::vector<int64_t>, std::vector<int64_t>, std::vector<int64_t>,
+                    std::vector<int64_t>, std::vector<double>, std::vector<long>, std::vector<long>, size_t>(),
+           "handle"_a, "op"_a, "slots"_a, "outputs"_a, "choices"_a, "ee"_a, "reals"_a, "in_values"_a,
+           "out_values"_a, "value_bytes"_a)
+      .def("__call__", &RawCall::operator(), "ptrs"_a, "B"_a);
 
   // {platform: PyCapsule of the XLA FFI handler} for jax.ffi.register_ffi_target; None in a build
   // without jaxlib's headers

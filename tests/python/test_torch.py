@@ -63,6 +63,37 @@ def test_leading_batch_shapes_and_broadcasting():
     assert q0.grad.shape == (h.nq,)
 
 
+def test_eager_fast_path_and_its_fallbacks_agree():
+    # a call with no autograd runs the kernel on the tensors' memory (Handle._eager, its layout cached
+    # per parameters); a non-contiguous tensor, another dtype, a NumPy array, leading axes that
+    # broadcast and a changed parameter take the general path or a new layout, with the same values
+    h = handle("hyq", True)
+    q, qd, u = states(h, 6)
+    want = h.numpy.inverse_dynamics(q, qd, u)
+    tq, tqd, tu = (torch.tensor(a) for a in (q, qd, u))
+    np.testing.assert_array_equal(h.inverse_dynamics(tq, tqd, tu).numpy(), want)
+    strided = torch.tensor(np.concatenate([qd, qd], -1))[:, ::2]
+    assert not strided.is_contiguous()
+    np.testing.assert_array_equal(h.inverse_dynamics(tq, torch.tensor(qd[:, ::1]), tu).numpy(), want)
+    np.testing.assert_array_equal(h.inverse_dynamics(tq, strided, tu).numpy(),
+                                  h.numpy.inverse_dynamics(q, np.ascontiguousarray(strided.numpy()), u))
+    np.testing.assert_allclose(h.inverse_dynamics(tq.float(), tqd, tu).numpy(),
+                               h.numpy.inverse_dynamics(q.astype(np.float32).astype(np.float64), qd, u), rtol=0,
+                               atol=0)
+    np.testing.assert_array_equal(h.inverse_dynamics(q, tqd, tu).numpy(), want)
+    np.testing.assert_array_equal(h.inverse_dynamics(tq.reshape(2, 3, -1), tqd.reshape(2, 3, -1),
+                                                     tu.reshape(2, 3, -1)).reshape(6, -1).numpy(), want)
+    np.testing.assert_array_equal(h.inverse_dynamics(tq, tqd, tu, gravity=-2.0).numpy(),
+                                  h.numpy.inverse_dynamics(q, qd, u, gravity=-2.0))
+    np.testing.assert_array_equal(h.inverse_dynamics(tq[0], tqd[0], tu[0]).numpy(),
+                                  h.numpy.inverse_dynamics(q[0], qd[0], u[0]))  # (one sample: not the batch path)
+    # under torch.no_grad a tensor that requires grad takes the fast path, and its result has no graph
+    with torch.no_grad():
+        out = h.inverse_dynamics(tq.clone().requires_grad_(), tqd, tu)
+    assert not out.requires_grad
+    np.testing.assert_array_equal(out.numpy(), want)
+
+
 @pytest.mark.parametrize("name,floating", [("iiwa", False), ("planar", False), ("helical", False), ("mimic", False)])
 def test_gradcheck(name, floating):
     h = handle(name, floating)
