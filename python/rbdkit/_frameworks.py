@@ -10,9 +10,9 @@ from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as NumpyHandle
 
 # the operations with a derivative rule, and the algorithms their rule calls
 DERIVATIVE_ALGORITHMS = {
-    "inverse_dynamics": ("inverse_dynamics_gradient", "crba"),
-    "forward_dynamics": ("forward_dynamics_gradient",),
-    "aba": ("forward_dynamics_gradient",),
+    "inverse_dynamics": ("inverse_dynamics_gradient", "crba", "f_ext_gradient"),
+    "forward_dynamics": ("forward_dynamics_gradient", "f_ext_gradient"),
+    "aba": ("forward_dynamics_gradient", "f_ext_gradient"),
     "integrator": ("integrator_gradient",),
     "plant_step": ("integrator_gradient",),
     "crba": ("idsva_so",),
@@ -26,6 +26,9 @@ DERIVATIVE_ALGORITHMS = {
     "momentum_cost": ("ccrba",),
     "ee_pos_cost": ("kinematics",),
 }
+# the operations whose rule covers f_ext (f_ext_gradient: -J_bᵀ for the torques, M⁻¹ J_bᵀ for the
+# accelerations, with J_b body b's Jacobian in its own frame); the integrators' do not yet
+F_EXT_RULES = ("inverse_dynamics", "forward_dynamics", "aba")
 # the operations of the configuration alone whose rule is configuration_jacobians' (q's tangent only)
 CONFIGURATION_RULES = ("crba", "minv", "com", "frame_placement", "frame_jacobian", "end_effector_pose")
 

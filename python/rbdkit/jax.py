@@ -17,8 +17,10 @@ Derivatives. The operations below have a `jax.custom_jvp` rule built on
 rbdkit's analytical derivatives, not on tracing or finite differences; JAX
 transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
 
-    inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient), ∂τ/∂qdd = M (crba)
-    forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one call)
+    inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient), ∂τ/∂qdd = M (crba),
+                            ∂τ/∂f_ext = -J_bᵀ per body (f_ext_gradient; f_ext in body frames)
+    forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one
+                            call), ∂qdd/∂f_ext = M⁻¹ J_bᵀ (f_ext_gradient)
     integrator, plant_step  [A | B] = ∂x⁺/∂(x, u) (integrator_gradient / plant_step_gradient), every scheme
     crba, minv              ∂M/∂q (idsva_so's dM_dq); ∂M⁻¹ = -M⁻¹ ∂M M⁻¹
     com                     jacobian_com
@@ -37,7 +39,7 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
                             values, and a gradient through them raises
 
 Every other operation computes values only; differentiating through one
-raises an error that names it (f_ext is not differentiable yet either).
+raises an error that names it (as does f_ext in the integrators and plant_step).
 
 Several devices. Every sample is independent, so a batch sharded over a
 mesh is computed shard by shard where it lives under jax.shard_map (the
@@ -79,8 +81,8 @@ except ImportError as e:  # an optional dependency
                       "rbdkit.jax again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
-                          apply_jacobians, call_keywords, configuration_jacobians, elementwise_arguments,
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
+                          add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians, elementwise_arguments,
                           elementwise_jvp, gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints,
                           rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
@@ -398,8 +400,9 @@ def _dense(t, p):
 
 def _check_fext(op, names, tangents):
     if "f_ext" in names and not _zero(tangents[names.index("f_ext")]):
-        raise NotImplementedError(f"rbdkit.jax: {op}'s derivative with respect to f_ext is not available yet; "
-                                  f"treat f_ext as a constant (jax.lax.stop_gradient) or differentiate without it")
+        raise NotImplementedError(f"rbdkit.jax: {op}'s derivative with respect to f_ext is not available yet (the "
+                                  f"dynamics' is: {', '.join(F_EXT_RULES)}); treat f_ext as a constant "
+                                  f"(jax.lax.stop_gradient) or differentiate without it")
 
 
 def _check_convention(h, op, call):
@@ -418,8 +421,8 @@ def _only(kw, op):
 
 
 def _dynamics_jvp(h, op, call, names, tangents):
-    """inverse_dynamics (q, qd, qdd -> tau) and forward_dynamics / aba (q, qd, u -> qdd)"""
-    _check_fext(op, names, tangents)
+    """inverse_dynamics (q, qd, qdd -> tau) and forward_dynamics / aba (q, qd, u -> qdd), f_ext included
+    (f_ext_gradient: ∂τ/∂f_b = -J_bᵀ, ∂qdd/∂f_b = M⁻¹ J_bᵀ)"""
     _check_convention(h, op, call)
     third = "qdd" if op == "inverse_dynamics" else names[2]
     q, qd = call["q"], call["qd"]
@@ -436,6 +439,9 @@ def _dynamics_jvp(h, op, call, names, tangents):
     dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
     if third in t and not _zero(t[third]):
         dout = dout + _mv(D3, t[third])
+    if "f_ext" in t and not _zero(t["f_ext"]):
+        Df = h._values("f_ext_gradient", (), {"q": q})[0 if op == "inverse_dynamics" else 1]  # (..., nb, nv, 6)
+        dout = dout + jnp.einsum("...bvk,...bk->...v", Df, t["f_ext"])
     out, dout = _vary_like([out, dout], [out, dout])
     return out, dout
 

@@ -12,8 +12,8 @@ Methods are named, ordered and checked as rbdkit.Handle's, and take any
 leading batch shape (broadcast on the leading axes). Tensors are CPU tensors
 in the handle's dtype (float64 by default); parameters are Python values.
 
-Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M), forward_dynamics
-and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call), the
+Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/∂f_ext), forward_dynamics
+and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
 integrator and plant_step for every scheme ([A | B]), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
 end_effector_pose, the quadratic costs and log barriers with respect to every
@@ -47,8 +47,8 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
-                          call_keywords, configuration_jacobians, elementwise_arguments, elementwise_vjp,
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
+                          add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments, elementwise_vjp,
                           gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints, rotation,
                           transpose_jacobians, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
@@ -364,9 +364,9 @@ def _check_differentiable(h, op, kw):
     if op == "ee_pos_cost" and grad("ee_offset"):
         raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
                                   "pass ee_offset.detach()")
-    if op in _RULES and grad("f_ext"):
+    if op in _RULES and op not in F_EXT_RULES and grad("f_ext"):
         raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
-                                  f"yet; pass f_ext.detach()")
+                                  f"yet (the dynamics' is: {', '.join(F_EXT_RULES)}); pass f_ext.detach()")
 
 
 # ---------------------------------------------------------------- the coordinates' maps
@@ -428,6 +428,9 @@ def _dynamics_vjp(h, op, call, kw, grads, outs):
     out = {"q": _tangent_map(h, q, _mtv(Dq, ct), "pinv_T"), "qd": _mtv(Dqd, ct)}
     if third in call:
         out[third] = _mtv(D3, ct)
+    if "f_ext" in call and call["f_ext"].requires_grad:  # -J_bᵀ or M⁻¹ J_bᵀ per body (f_ext_gradient)
+        Df = h._values("f_ext_gradient", {"q": q})[0 if op == "inverse_dynamics" else 1]  # (..., nb, nv, 6)
+        out["f_ext"] = torch.einsum("...bvk,...v->...bk", Df, ct)
     return out
 
 

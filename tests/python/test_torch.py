@@ -98,8 +98,10 @@ def test_eager_fast_path_and_its_fallbacks_agree():
 def test_gradcheck(name, floating):
     h = handle(name, floating)
     q, qd, u = tensors(*states(h, 2, seed=1))
+    f = torch.tensor(np.random.default_rng(2).standard_normal((h.nb, 6)), requires_grad=True)
     for op in ("inverse_dynamics", "forward_dynamics", "aba"):
         assert torch.autograd.gradcheck(lambda q, qd, u: getattr(h, op)(q, qd, u), (q, qd, u)), op
+        assert torch.autograd.gradcheck(lambda q, f: getattr(h, op)(q, qd, u, f_ext=f), (q, f)), op
     for scheme in SCHEMES:
         assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
     x = torch.cat([q, qd], -1).detach().requires_grad_()
@@ -130,6 +132,14 @@ def test_quaternion_models_against_central_differences(name, floating):
                                                                                    **manifold)) < 1e-6, op
         assert rel(tqd.grad, w @ central_difference(lambda z: f(q, z, u), qd)) < 1e-6, op
         assert rel(tu.grad, w @ central_difference(lambda z: f(q, qd, z), u)) < 1e-6, op
+        # with external forces (body frames): ∂/∂f_ext, and ∂/∂q with the forces on
+        fx = np.random.default_rng(4).standard_normal((h.nb, 6))
+        tq, tf = tensors(q, fx)
+        (getattr(h, op)(tq, torch.tensor(qd), torch.tensor(u), f_ext=tf) @ torch.tensor(w)).backward()
+        assert rel(h.tangent_gradient(tq.detach(), tq.grad),
+                   w @ central_difference(lambda z: f(z, qd, u, f_ext=fx), q, **manifold)) < 1e-6, op
+        assert rel(tf.grad.reshape(-1), w @ central_difference(lambda z: f(q, qd, u, f_ext=z.reshape(h.nb, 6)),
+                                                               fx.ravel())) < 1e-6, op
     for scheme in ("euler", "rk4"):
         tq, tqd, tu = tensors(q, qd, u)
         wx = np.random.default_rng(4).standard_normal(h.nq + h.nv)
@@ -187,8 +197,8 @@ def test_errors_are_clear():
         torch.autograd.functional.hessian(lambda q: h.com(q)[2], q.detach()[0])
     with pytest.raises(NotImplementedError, match="differentiable with respect to q only, not ee_offsets"):
         h.end_effector_pose(q, ee_offsets=torch.zeros(1, 3, dtype=torch.float64, requires_grad=True))
-    with pytest.raises(NotImplementedError, match="f_ext"):
-        h.aba(q, qd, u, f_ext=torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True))
+    with pytest.raises(NotImplementedError, match="f_ext is not available yet"):
+        h.integrator(q, qd, u, 0.01, f_ext=torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True))
     with pytest.raises(ValueError, match=r"qd: expected shape \(\.\.\., 7\)"):
         h.aba(q, qd[..., :3], u)
     with pytest.raises(ValueError, match="integrator_type"):
@@ -198,7 +208,7 @@ def test_errors_are_clear():
     with pytest.raises(ValueError, match="q"):
         h.crba(bad)
     with pytest.raises(ValueError, match="not built with it"):
-        rt.Handle(h.model, algorithms=["inverse_dynamics"]).minv(q)
+        rt.Handle(h.model, algorithms=["inverse_dynamics"]).centroidal_momentum(q, qd)
 
 
 def test_rbdkit_imports_without_torch():
