@@ -25,6 +25,7 @@ DERIVATIVE_ALGORITHMS = {
     "com_cost": ("com",),
     "momentum_cost": ("ccrba",),
     "ee_pos_cost": ("kinematics",),
+    "inverse_dynamics_regressor": ("regressor_gradient",),
 }
 # the operations whose rule covers f_ext (f_ext_gradient: -J_bᵀ for the torques, M⁻¹ J_bᵀ for the
 # accelerations, with J_b body b's Jacobian in its own frame); the integrators' do not yet
@@ -280,3 +281,36 @@ def gauss_newton_value_vjp(xp, h, op, call, outs, cv, values, pinv_t):
             ee = {"ee_joint_names": [name], "ee_offsets": None if offset is None else offset[..., None, :]}
         r = values("end_effector_pose", dict(ee, q=q))[0][..., 0, :3] - call["p_des"]
     return {"q": pinv_t(q, c * g[..., :nv]), "p_des": -c * W * r, "W": 0.5 * c * r * r}
+
+
+# ---- the inverse-dynamics regressor Y (nv, 10·nb), τ = Y(q, qd, qdd) π: its derivatives, and the
+# inverse dynamics with the inertial parameters π as an array (a differentiable input)
+
+def regressor_jacobians(xp, h, call, values, wanted):
+    """{name: J (..., nv, 10·nb, n)} for the arrays `wanted` of inverse_dynamics_regressor at `call`
+    (keywords): J_q along tangent steps q ⊕ δ and J_qd, slices of inverse_dynamics_regressor_gradient
+    (dY[c] = ∂Y/∂x_c, x = [δ; qd]); J_qdd[..., k] = Y(q, 0, e_k, gravity=0), as Y is linear in qdd
+    (one batched call over the nv directions). values(op, keywords) -> list of arrays is the
+    framework's call."""
+    q, nv = call["q"], h.nv
+    J = {}
+    if wanted & {"q", "qd"}:
+        dY = xp.moveaxis(values("inverse_dynamics_regressor_gradient", call)[0], -3, -1)  # (..., nv, 10nb, 2nv)
+        J["q"], J["qd"] = dY[..., :nv], dY[..., nv:]
+    if "qdd" in wanted:
+        directions = xp.eye(nv, dtype=q.dtype)
+        Ya = values("inverse_dynamics_regressor", {"q": q[..., None, :], "qd": xp.zeros((nv,), dtype=q.dtype),
+                                                   "qdd": directions, "gravity": 0.0})[0]  # (..., k, nv, 10nb)
+        J["qdd"] = xp.moveaxis(Ya, -3, -1)
+    return J
+
+
+def inverse_dynamics_with_parameters(xp, h, q, qd, qdd, pi, gravity, regressor):
+    """τ = Y(q, qd, qdd) π (..., nv) for inertial parameters pi (..., 10·nb) in
+    Model.inertial_parameters' layout; regressor(q, qd, qdd, gravity) is the framework handle's
+    inverse_dynamics_regressor (differentiable in q, qd, qdd)"""
+    n = 10 * h.nb
+    if tuple(pi.shape[-1:]) != (n,):
+        raise ValueError(f"pi: expected shape (..., {n}) with 10*nb={n} (Model.inertial_parameters' layout), got "
+                         f"{tuple(pi.shape)}")
+    return xp.einsum("...ij,...j->...i", regressor(q, qd, qdd, gravity), pi)

@@ -28,6 +28,9 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
     frame_jacobian          ∂J/∂q from frame_jacobian_dot (dJ/dt along each tangent direction)
     end_effector_pose       end_effector_pose_gradient
 (those five with respect to q only; their other arrays are constants),
+    inverse_dynamics_regressor
+                            ∂Y/∂q, ∂Y/∂qd (inverse_dynamics_regressor_gradient); ∂Y/∂qdd from Y
+                            itself (linear in qdd),
     quadratic_state_cost, quadratic_input_cost, joint_position_barrier,
     joint_velocity_barrier, joint_torque_barrier
                             value, grad and H (or Hdiag) with respect to every array: closed forms
@@ -40,6 +43,17 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
 
 Every other operation computes values only; differentiating through one
 raises an error that names it (as does f_ext in the integrators and plant_step).
+
+Inertial parameters. A handle's model is fixed, but the inverse dynamics is
+linear in the inertial parameters: τ = Y(q, qd, qdd) π, with Y the
+regressor and π (10·nb: per body m, m·c, I about the body origin; see
+Model.inertial_parameters) the parameters. So
+Handle.inverse_dynamics_with_parameters(q, qd, qdd, pi) takes π as an array,
+traced and differentiable like any other: ∂τ/∂π = Y, and ∂τ/∂(q, qd, qdd)
+through the regressor's rule. Any map onto π (a physically consistent
+parametrisation, a log-Cholesky factor of each body's pseudo-inertia) is
+differentiated by JAX on top. examples/jax_sysid.py identifies a robot's
+parameters this way.
 
 Several devices. Every sample is independent, so a batch sharded over a
 mesh is computed shard by shard where it lives under jax.shard_map (the
@@ -83,8 +97,9 @@ except ImportError as e:  # an optional dependency
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians, elementwise_arguments,
-                          elementwise_jvp, gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints,
-                          rotation, with_derivative_algorithms)
+                          elementwise_jvp, gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters,
+                          one_dof_coordinates, quaternion_joints, regressor_jacobians, rotation,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -200,6 +215,15 @@ class Handle:
         if op in GAUSS_NEWTON_RULES:
             return _custom_vjp_call(self, op, args, kwargs)
         return _custom_call(self, op, args, kwargs, _RULES.get(op, _no_derivative))
+
+    # ---- the inertial parameters as an array
+    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=-9.81):
+        """τ = Y(q, qd, qdd) π (..., nv): the inverse dynamics with the inertial parameters pi (..., 10·nb,
+        Model.inertial_parameters' layout) as an array, differentiable in pi (∂τ/∂π = Y) and in q, qd,
+        qdd (the regressor's rule); no f_ext. At pi = model.inertial_parameters() it is
+        inverse_dynamics(q, qd, qdd)[0] (module doc, "Inertial parameters")."""
+        return inverse_dynamics_with_parameters(jnp, self, q, qd, qdd, jnp.asarray(pi), gravity,
+                                                self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (module doc)
     def to_tangent(self, q, dq):
@@ -496,7 +520,21 @@ def _elementwise_jvp(h, op, call, names, tangents):
     return tuple(both[:3]), tuple(both[3:])
 
 
+def _regressor_jvp(h, op, call, names, tangents):
+    """inverse_dynamics_regressor (q, qd, qdd -> Y): its Jacobians (_frameworks.regressor_jacobians)
+    applied to the tangents"""
+    t = {n: tn for n, tn in zip(names, tangents) if not _zero(tn)}
+    Y = h._values(op, (), call)
+    J = regressor_jacobians(jnp, h, call, h._value_list, set(t))
+    dY = jnp.zeros_like(Y)
+    for n, tn in t.items():
+        d = _to_tangent(h, call["q"], tn) if n == "q" else tn
+        dY = dY + jnp.einsum("...ijk,...k->...ij", J[n], d)
+    Y, dY = _vary_like([Y, dY], [Y, dY])
+    return Y, dY
+
+
 _RULES = {"inverse_dynamics": _dynamics_jvp, "forward_dynamics": _dynamics_jvp, "aba": _dynamics_jvp,
-          "integrator": _step_jvp, "plant_step": _step_jvp}
+          "integrator": _step_jvp, "plant_step": _step_jvp, "inverse_dynamics_regressor": _regressor_jvp}
 _RULES.update({op: _configuration_jvp for op in CONFIGURATION_RULES})
 _RULES.update({op: _elementwise_jvp for op in ELEMENTWISE_RULES})

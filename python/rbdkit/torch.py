@@ -16,7 +16,9 @@ Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/�
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
 integrator and plant_step for every scheme ([A | B]), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
-end_effector_pose, the quadratic costs and log barriers with respect to every
+end_effector_pose, inverse_dynamics_regressor (q, qd, qdd; so
+inverse_dynamics_with_parameters differentiates in the inertial parameters
+too), the quadratic costs and log barriers with respect to every
 array, and the value of the Gauss–Newton costs (quadratic_state_cost_tangent,
 com_cost, momentum_cost, ee_pos_cost; rbdkit.jax's module doc lists how). Gradients with respect
 to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
@@ -49,8 +51,9 @@ except ImportError as e:  # an optional dependency
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments, elementwise_vjp,
-                          gauss_newton_value_vjp, half_q, one_dof_coordinates, quaternion_joints, rotation,
-                          transpose_jacobians, with_derivative_algorithms)
+                          gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters, one_dof_coordinates,
+                          quaternion_joints, regressor_jacobians, rotation, transpose_jacobians,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
@@ -337,6 +340,13 @@ class Handle:
             self._plans[tuple(key)] = plan
         return plan
 
+    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=-9.81):
+        """τ = Y(q, qd, qdd) π (..., nv): the inverse dynamics with the inertial parameters pi (..., 10·nb,
+        Model.inertial_parameters' layout) as a tensor, differentiable in pi and in q, qd, qdd (rbdkit.jax's
+        module doc, "Inertial parameters"); no f_ext"""
+        return inverse_dynamics_with_parameters(torch, self, q, qd, qdd, torch.as_tensor(pi, dtype=self.dtype),
+                                                gravity, self.inverse_dynamics_regressor)
+
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
     def tangent_gradient(self, q, grad_q):
         """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)"""
@@ -487,3 +497,17 @@ def _gauss_newton_vjp(h, op, call, kw, grads, outs):
 
 
 _RULES.update({op: _gauss_newton_vjp for op in GAUSS_NEWTON_RULES})
+
+
+def _regressor_vjp(h, op, call, kw, grads, outs):
+    """inverse_dynamics_regressor: the cotangents through its Jacobians (_frameworks.regressor_jacobians)"""
+    ct = grads[0]
+    args = dict(kw, **{k: v.detach() for k, v in call.items()})
+    J = regressor_jacobians(torch, h, args, h._values, {n for n, v in call.items() if v.requires_grad})
+    out = {n: torch.einsum("...ijk,...ij->...k", Jn, ct) for n, Jn in J.items()}
+    if "q" in out:
+        out["q"] = _tangent_map(h, call["q"], out["q"], "pinv_T")
+    return out
+
+
+_RULES["inverse_dynamics_regressor"] = _regressor_vjp

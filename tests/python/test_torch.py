@@ -102,6 +102,11 @@ def test_gradcheck(name, floating):
     for op in ("inverse_dynamics", "forward_dynamics", "aba"):
         assert torch.autograd.gradcheck(lambda q, qd, u: getattr(h, op)(q, qd, u), (q, qd, u)), op
         assert torch.autograd.gradcheck(lambda q, f: getattr(h, op)(q, qd, u, f_ext=f), (q, f)), op
+    pi = torch.tensor(h.model.inertial_parameters() * np.random.default_rng(3).uniform(0.8, 1.2, 10 * h.nb),
+                      requires_grad=True)
+    assert torch.autograd.gradcheck(lambda q, qd, qdd: h.inverse_dynamics_regressor(q, qd, qdd), (q, qd, u))
+    assert torch.autograd.gradcheck(lambda q, qd, qdd, pi: h.inverse_dynamics_with_parameters(q, qd, qdd, pi),
+                                    (q, qd, u, pi))
     for scheme in SCHEMES:
         assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
     x = torch.cat([q, qd], -1).detach().requires_grad_()
@@ -132,6 +137,13 @@ def test_quaternion_models_against_central_differences(name, floating):
                                                                                    **manifold)) < 1e-6, op
         assert rel(tqd.grad, w @ central_difference(lambda z: f(q, z, u), qd)) < 1e-6, op
         assert rel(tu.grad, w @ central_difference(lambda z: f(q, qd, z), u)) < 1e-6, op
+        if op == "inverse_dynamics":  # with the inertial parameters as an input (the regressor's rule)
+            tq, tpi = tensors(q, h.model.inertial_parameters())
+            (h.inverse_dynamics_with_parameters(tq, torch.tensor(qd), torch.tensor(u), tpi) @ torch.tensor(w)).backward()
+            assert rel(h.tangent_gradient(tq.detach(), tq.grad), w @ central_difference(lambda z: f(z, qd, u), q,
+                                                                                       **manifold)) < 1e-6
+            np.testing.assert_allclose(tpi.grad.numpy(), w @ h.numpy.inverse_dynamics_regressor(q, qd, u), rtol=1e-12,
+                                       atol=1e-12)
         # with external forces (body frames): ∂/∂f_ext, and ∂/∂q with the forces on
         fx = np.random.default_rng(4).standard_normal((h.nb, 6))
         tq, tf = tensors(q, fx)
