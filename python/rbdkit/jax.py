@@ -56,15 +56,15 @@ differentiated by JAX on top. examples/jax_sysid.py identifies a robot's
 parameters this way.
 
 Several devices. Every sample is independent, so a batch sharded over a
-mesh is computed shard by shard where it lives under jax.shard_map (the
-call's operands are the local shards; values and gradients equal the
-unsharded call's):
+mesh on its batch axes is computed shard by shard where it lives, under
+plain jit (each call is partitionable over its batch axes: a
+custom_partitioning rule keeps the inputs' batch sharding and replicates
+the per-sample axes) or under jax.shard_map; values and gradients equal
+the unsharded call's:
 
+    qs, qds, us = (jax.device_put(a, NamedSharding(mesh, P("batch"))) for a in (q, qd, u))
+    qdd = jax.jit(h.forward_dynamics)(qs, qds, us)          # each device its own samples
     fd = jax.shard_map(h.forward_dynamics, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"))
-
-Under plain jit with sharded inputs the results are the same, but XLA
-gathers the batch onto each device first (the call is not yet registered as
-batch-partitionable).
 
 Floating bases and spherical joints (quaternion coordinates). rbdkit's
 derivatives live in the tangent space: δq is a velocity-like vector of nv
@@ -90,6 +90,8 @@ import numpy as np
 try:
     import jax
     import jax.numpy as jnp
+    from jax.custom_batching import custom_vmap
+    from jax.experimental.custom_partitioning import custom_partitioning
 except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.jax needs JAX: pip install 'jax[cpu]' (or a CUDA build of jax), then import "
                       "rbdkit.jax again") from e
@@ -126,6 +128,63 @@ def _register():
     for platform, capsule in handlers.items():
         jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
     _registered = True
+
+
+def _ffi_call(xs, n_batch, out_shapes, dtype, attributes):
+    """the outputs (*batch, shape) of the custom call on xs (each (*batch, its shape)), batch their first
+    n_batch axes. Traced with a batch, it is partitionable over the batch axes (custom_partitioning):
+    under jit with inputs sharded on their batch axes, each device computes its own samples, the
+    trailing axes replicated; on one device or inside jax.shard_map it lowers to the plain call.
+    custom_partitioning has no vmap rule, so a custom_vmap gives it one: a vmapped call is the same
+    call on a batch with one more axis. Concrete arrays take the plain call (an eager dispatch is
+    cached by its attributes)."""
+    batch = tuple(xs[0].shape[:n_batch]) if xs else ()
+    if n_batch == 0 or not any(isinstance(x, jax.core.Tracer) for x in xs):
+        results = [jax.ShapeDtypeStruct(batch + s, dtype) for s in out_shapes]
+        return list(jax.ffi.ffi_call(_TARGET, results, vmap_method="broadcast_all")(*xs, **attributes))
+    ranks = [x.ndim - n_batch for x in xs]
+
+    def plain(*args):  # on local (per-device) shapes inside partition
+        local = tuple(args[0].shape[:n_batch])
+        results = [jax.ShapeDtypeStruct(local + s, dtype) for s in out_shapes]
+        return tuple(jax.ffi.ffi_call(_TARGET, results, vmap_method="broadcast_all")(*args, **attributes))
+
+    def shardings(mesh, arg_shapes):  # the batch axes' sharding of the first input, the rest replicated
+        sharding = arg_shapes[0].sharding
+        if isinstance(sharding, jax.sharding.NamedSharding):
+            mesh, spec = sharding.mesh, tuple(sharding.spec) + (None,) * n_batch
+        else:  # (a sharding without a mesh: replicated)
+            spec = (None,) * n_batch
+        named = lambda r: jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(*spec[:n_batch], *(None,) * r))  # noqa: E731
+        return mesh, tuple(named(r) for r in ranks), tuple(named(len(s)) for s in out_shapes)
+
+    def partition(mesh, arg_shapes, result_shape):
+        mesh, args, results = shardings(mesh, arg_shapes)
+        return mesh, plain, results, args
+
+    def infer(mesh, arg_shapes, result_shape):
+        return shardings(mesh, arg_shapes)[2]
+
+    b = " ".join(f"b{i}" for i in range(n_batch))
+    trailing = lambda prefix, r: " ".join(f"{prefix}_{j}" for j in range(r))  # noqa: E731
+    rule = ", ".join(f"{b} {trailing(f'i{k}', r)}" for k, r in enumerate(ranks)) + " -> " + \
+        ", ".join(f"{b} {trailing(f'o{k}', len(s))}" for k, s in enumerate(out_shapes))
+    replicated = tuple(f"i{k}_{j}" for k, r in enumerate(ranks) for j in range(r)) + \
+        tuple(f"o{k}_{j}" for k, s in enumerate(out_shapes) for j in range(len(s)))
+    partitioned = custom_partitioning(plain)
+    partitioned.def_partition(partition, infer_sharding_from_operands=infer, sharding_rule=rule,
+                              need_replication_factors=replicated)
+
+    @custom_vmap
+    def call(*args):
+        return partitioned(*args)
+
+    @call.def_vmap
+    def call_vmapped(axis_size, in_batched, *args):
+        args = [a if batched else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, batched in zip(args, in_batched)]
+        return tuple(_ffi_call(args, n_batch + 1, out_shapes, dtype, attributes)), (True,) * len(out_shapes)
+
+    return list(call(*xs))
 
 
 def _vary_like(outs, refs):
@@ -198,12 +257,10 @@ class Handle:
             xs.append(x)
         batch = jnp.broadcast_shapes(*[x.shape[:x.ndim - len(s)] for x, (_, _, s) in zip(xs, arrays)]) if xs else ()
         xs = [jnp.broadcast_to(x, batch + tuple(s)) for x, (_, _, s) in zip(xs, arrays)]
-        results = [jax.ShapeDtypeStruct(batch + tuple(s), self.dtype) for _, s in outs]
-        call = jax.ffi.ffi_call(_TARGET, results, vmap_method="broadcast_all")
-        out = call(*xs, handle=self._address, op=np.int64(op_id),
-                   slots=np.array([k for k, _, _ in arrays], np.int64), outputs=np.array([o for o, _ in outs], np.int64),
-                   reals=np.array(reals, np.float64), choices=np.array(choices, np.int64), ee=np.array(ee, np.int64))
-        out = _vary_like(out, xs)
+        attributes = dict(handle=self._address, op=np.int64(op_id), slots=np.array([k for k, _, _ in arrays], np.int64),
+                          outputs=np.array([o for o, _ in outs], np.int64), reals=np.array(reals, np.float64),
+                          choices=np.array(choices, np.int64), ee=np.array(ee, np.int64))
+        out = _vary_like(_ffi_call(xs, len(batch), [tuple(s) for _, s in outs], self.dtype, attributes), xs)
         return out[0] if len(out) == 1 else tuple(out)
 
     def _value_list(self, op, kwargs, outputs=-1):

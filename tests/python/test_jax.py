@@ -389,10 +389,26 @@ np.testing.assert_array_equal(np.asarray(out), h.numpy.forward_dynamics(q, qd, u
 g = jax.jit(jax.grad(lambda u: (fd(qs, qds, u) ** 2).sum()))(us)
 g1 = jax.grad(lambda u: (h.forward_dynamics(q, qd, u) ** 2).sum())(u)
 np.testing.assert_allclose(np.asarray(g), np.asarray(g1), rtol=1e-13, atol=1e-12)
-# a sharded rollout step: jit over NamedSharding inputs gives the unsharded result too
+# plain jit over NamedSharding inputs partitions the call over the batch too (custom_partitioning):
+# 4-sample operands, no gather, the output sharded as the inputs; so does its gradient
+fj = jax.jit(h.forward_dynamics)
+hlo = fj.lower(qs, qds, us).compile().as_text()
+calls = [l for l in hlo.splitlines() if 'custom_call_target="rbdkit_op"' in l]
+assert calls and all("f64[4,18]" in l for l in calls) and "all-gather" not in hlo, hlo
+out = fj(qs, qds, us)
+assert out.sharding.spec == P("batch")
+np.testing.assert_array_equal(np.asarray(out), h.numpy.forward_dynamics(q, qd, u))
+gj = jax.jit(jax.grad(lambda u: (h.forward_dynamics(qs, qds, u) ** 2).sum()))
+hlo = gj.lower(us).compile().as_text()
+calls = [l for l in hlo.splitlines() if 'custom_call_target="rbdkit_op"' in l]
+assert calls and all("f64[4,18,18]" in l for l in calls) and "all-gather" not in hlo, hlo
+np.testing.assert_allclose(np.asarray(gj(us)), np.asarray(g1), rtol=1e-13, atol=1e-12)
+# a sharded rollout step and a vmapped call under jit: the unsharded results
 x = jnp.concatenate([qs, qds], -1)
 np.testing.assert_array_equal(np.asarray(jax.jit(lambda x, u: h.plant_step(x, u, 0.01, "rk4"))(x, us)),
                               h.numpy.plant_step(np.concatenate([q, qd], -1), u, 0.01, "rk4"))
+np.testing.assert_array_equal(np.asarray(jax.jit(jax.vmap(h.forward_dynamics))(qs, qds, us)),
+                              h.numpy.forward_dynamics(q, qd, u))
 print("sharded ok")
 """
 
