@@ -66,6 +66,13 @@ def add_operation_methods(cls, call):
         setattr(cls, op, make(op))
 
 
+def mujoco_coordinates(h, call):
+    """whether a call's q, x and tangents are MuJoCo's (output_convention="mujoco" on a model with
+    quaternions): quaternions w x y z, ⊕ is mj_integratePos (a free joint's position additive in the
+    world, the rotation r ⊗ exp(δθ)); elsewhere both conventions have the same coordinates"""
+    return bool(h._quats) and call.get("output_convention", h.output_convention) == "mujoco"
+
+
 def quaternion_joints(model):
     """[(kind, q_index, v_index)] of the joints whose coordinates are not their tangent space: free
     joints ("free": position, then a quaternion x y z w) and spherical ones ("spherical")"""
@@ -88,11 +95,15 @@ def rotation(xp, quat):
         xp.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
 
 
-def half_q(xp, quat):
-    """½ Q(q) (..., 4, 3): ∂(q ⊗ (δ/2, 1))/∂δ for q = (v, w) in x y z w order: [w I + [v]x; -vᵀ] / 2"""
-    x, y, z, w = (quat[..., k] for k in range(4))
-    return 0.5 * xp.stack([xp.stack([w, -z, y], -1), xp.stack([z, w, -x], -1), xp.stack([-y, x, w], -1),
-                           xp.stack([-x, -y, -z], -1)], -2)
+def half_q(xp, quat, w_first=False):
+    """½ Q(q) (..., 4, 3): ∂(q ⊗ (δ/2, 1))/∂δ for q = (v, w) in x y z w order: [w I + [v]x; -vᵀ] / 2;
+    w_first: q and the rows in MuJoCo's w x y z order ([-vᵀ; w I + [v]x] / 2)"""
+    if w_first:
+        w, x, y, z = (quat[..., k] for k in range(4))
+    else:
+        x, y, z, w = (quat[..., k] for k in range(4))
+    rows = [xp.stack([w, -z, y], -1), xp.stack([z, w, -x], -1), xp.stack([-y, x, w], -1), xp.stack([-x, -y, -z], -1)]
+    return 0.5 * xp.stack(rows[3:] + rows[:3] if w_first else rows, -2)
 
 
 def call_keywords(op, names, args, kwargs):

@@ -81,6 +81,15 @@ change of its norm, which the model ignores), and Eᵀ of it is g again. With
 unit quaternions, EᵀE = diag(I, ¼ I), so the quaternion block of the
 coordinate gradient is 2 Q(q) g_ω: the tangent gradient is recovered as
 g = Eᵀ (JAX's gradient), `Handle.tangent_gradient` below.
+
+MuJoCo's coordinates (output_convention="mujoco": quaternions w x y z, a
+free joint's linear velocity in the world). integrator and plant_step
+differentiate there too, with [A | B] along MuJoCo's retraction
+(mj_integratePos: a free joint's position additive in the world, rotations
+r ⊗ exp(δθ)): E is then the identity on a free joint's position and ½ Q(q)
+in w x y z order on each quaternion, and to_tangent, from_tangent and
+tangent_gradient take output_convention="mujoco" for those maps. The
+Gauss–Newton costs' derivatives are Pinocchio-convention only (they raise).
 """
 
 import atexit
@@ -98,10 +107,10 @@ except ImportError as e:  # an optional dependency
 
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
-                          add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians, elementwise_arguments,
-                          elementwise_jvp, gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters,
-                          one_dof_coordinates, quaternion_joints, regressor_jacobians, rotation,
-                          with_derivative_algorithms)
+                          add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians,
+                          elementwise_arguments, elementwise_jvp, gauss_newton_value_vjp, half_q,
+                          inverse_dynamics_with_parameters, mujoco_coordinates, one_dof_coordinates, quaternion_joints,
+                          regressor_jacobians, rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -283,18 +292,19 @@ class Handle:
                                                 self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (module doc)
-    def to_tangent(self, q, dq):
+    # (output_convention: None for the handle's; "mujoco": MuJoCo's coordinates and mj_integratePos)
+    def to_tangent(self, q, dq, output_convention=None):
         """E⁺(q) dq: a change dq (..., nq) of the coordinates at q as a tangent-space vector (..., nv)"""
-        return _to_tangent(self, q, dq)
+        return _tangent_map(self, q, dq, "to_tangent", _mujoco_maps(self, output_convention))
 
-    def from_tangent(self, q, dv):
+    def from_tangent(self, q, dv, output_convention=None):
         """E(q) dv: a tangent-space vector dv (..., nv) at q as a change of the coordinates (..., nq)"""
-        return _from_tangent(self, q, dv)
+        return _tangent_map(self, q, dv, "from_tangent", _mujoco_maps(self, output_convention))
 
-    def tangent_gradient(self, q, grad_q):
+    def tangent_gradient(self, q, grad_q, output_convention=None):
         """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from JAX's gradient with respect to the
         coordinates q (..., nq)"""
-        return _from_tangent_transpose(self, q, grad_q)
+        return _tangent_map(self, q, grad_q, "transpose", _mujoco_maps(self, output_convention))
 
     def __repr__(self):
         return f"<rbdkit.jax.Handle of {self.model!r}: dtype={self.dtype.name}>"
@@ -418,10 +428,11 @@ def _assemble(pieces, n, batch, dtype):
     return jnp.take(jnp.concatenate(vals, -1), np.argsort(np.array(idx)), axis=-1)
 
 
-def _tangent_map(h, q, x, kind):
+def _tangent_map(h, q, x, kind, mujoco=False):
     """the linear maps of the coordinates at q (module doc), applied to x over leading axes:
     "to_tangent" E⁺ x (x: nq -> nv), "from_tangent" E x (nv -> nq), "transpose" Eᵀ x (nq -> nv),
-    "pinv_t" E⁺ᵀ x (nv -> nq: a tangent-space cotangent on the coordinates)"""
+    "pinv_t" E⁺ᵀ x (nv -> nq: a tangent-space cotangent on the coordinates). mujoco: MuJoCo's
+    coordinates and ⊕ (a free joint's position block is the identity, quaternions w x y z)"""
     q, x = jnp.asarray(q), jnp.asarray(x)
     batch = jnp.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     dtype = jnp.result_type(q, x)
@@ -433,8 +444,11 @@ def _tangent_map(h, q, x, kind):
     rot_scale = {"to_tangent": 4.0, "from_tangent": 1.0, "transpose": 1.0, "pinv_t": 4.0}[kind]
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq  # the quaternion's first coordinate
-        Q = half_q(jnp, q[..., qq:qq + 4])
-        if joint == "free":  # the position: E = R, E⁺ = Eᵀ = Rᵀ
+        Q = half_q(jnp, q[..., qq:qq + 4], w_first=mujoco)
+        if joint == "free" and mujoco:  # the position, additive in the world: E = I
+            src, dst = (range(iv, iv + 3), range(iq, iq + 3)) if to_q else (range(iq, iq + 3), range(iv, iv + 3))
+            pieces.append((list(dst), x[..., src.start:src.stop]))
+        elif joint == "free":  # the position: E = R, E⁺ = Eᵀ = Rᵀ
             R = rotation(jnp, q[..., qq:qq + 4])
             if to_q:
                 pieces.append((list(range(iq, iq + 3)), N(R, x[..., iv:iv + 3])))
@@ -448,19 +462,17 @@ def _tangent_map(h, q, x, kind):
     return _assemble(pieces, h.nq if to_q else h.nv, batch, dtype)
 
 
+def _mujoco_maps(h, output_convention):
+    """whether the public tangent maps use MuJoCo's coordinates (rbdkit.Handle's check of the name)"""
+    conv = h.output_convention if output_convention is None else output_convention
+    if conv not in ("pinocchio", "mujoco"):
+        raise ValueError(f"output_convention: expected 'pinocchio' or 'mujoco', got {conv!r}")
+    return mujoco_coordinates(h, {"output_convention": conv})
+
+
 def _to_tangent(h, q, dq):
     """E⁺ dq (module doc)"""
     return _tangent_map(h, q, dq, "to_tangent")
-
-
-def _from_tangent(h, q, dv):
-    """E dv (module doc)"""
-    return _tangent_map(h, q, dv, "from_tangent")
-
-
-def _from_tangent_transpose(h, q, g):
-    """Eᵀ g: a coordinate cotangent g (..., nq) as a tangent-space one (..., nv)"""
-    return _tangent_map(h, q, g, "transpose")
 
 
 # ---------------------------------------------------------------- derivative rules (custom_jvp)
@@ -528,9 +540,10 @@ def _dynamics_jvp(h, op, call, names, tangents):
 
 
 def _step_jvp(h, op, call, names, tangents):
-    """integrator (q, qd, u -> x⁺) and plant_step (x, u -> x⁺): [A | B] in the tangent space"""
+    """integrator (q, qd, u -> x⁺) and plant_step (x, u -> x⁺): [A | B] in the tangent space (MuJoCo's
+    under its convention: [A | B] is then along mj_integratePos)"""
     _check_fext(op, names, tangents)
-    _check_convention(h, op, call)
+    mujoco = mujoco_coordinates(h, call)
     grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
     x_next, AB = h._values(grad_op, (), call, outputs=0b11)
     nq, nv = h.nq, h.nv
@@ -541,9 +554,10 @@ def _step_jvp(h, op, call, names, tangents):
         q, tq, tqd = call["q"], t["q"], t["qd"]
     else:
         q, tq, tqd = call["x"][..., :nq], t["x"][..., :nq], t["x"][..., nq:]
-    dx = jnp.concatenate([_to_tangent(h, q, tq), tqd, t["u"]], -1)
+    dx = jnp.concatenate([_tangent_map(h, q, tq, "to_tangent", mujoco), tqd, t["u"]], -1)
     d = _mv(AB, dx)  # [δq⁺ in the tangent space; δqd⁺]
-    dnext = jnp.concatenate([_from_tangent(h, x_next[..., :nq], d[..., :nv]), d[..., nv:]], -1)
+    dnext = jnp.concatenate([_tangent_map(h, x_next[..., :nq], d[..., :nv], "from_tangent", mujoco), d[..., nv:]],
+                            -1)
     x_next, dnext = _vary_like([x_next, dnext], [x_next, dnext])
     return x_next, dnext
 

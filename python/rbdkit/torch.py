@@ -23,7 +23,9 @@ array, and the value of the Gauss–Newton costs (quadratic_state_cost_tangent,
 com_cost, momentum_cost, ee_pos_cost; rbdkit.jax's module doc lists how). Gradients with respect
 to quaternion coordinates follow rbdkit.jax's convention (its module doc): the
 tangent-space gradient g becomes E⁺ᵀ g on the coordinates, with no component
-along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back. The
+along a quaternion; `Handle.tangent_gradient(q, grad_q)` gives g back (in
+MuJoCo's coordinates too, where integrator and plant_step differentiate along
+mj_integratePos: output_convention="mujoco", as in rbdkit.jax). The
 other operations compute values; a backward pass through one raises.
 
 Three routes to the same kernel and formulas. torch.compile traces the
@@ -50,10 +52,10 @@ except ImportError as e:  # an optional dependency
 
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
-                          add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments, elementwise_vjp,
-                          gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters, one_dof_coordinates,
-                          quaternion_joints, regressor_jacobians, rotation, transpose_jacobians,
-                          with_derivative_algorithms)
+                          add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments,
+                          elementwise_vjp, gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters,
+                          mujoco_coordinates, one_dof_coordinates, quaternion_joints, regressor_jacobians, rotation,
+                          transpose_jacobians, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
@@ -348,9 +350,14 @@ class Handle:
                                                 gravity, self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
-    def tangent_gradient(self, q, grad_q):
-        """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)"""
-        return _tangent_map(self, torch.as_tensor(q), torch.as_tensor(grad_q), "transpose")
+    def tangent_gradient(self, q, grad_q, output_convention=None):
+        """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)
+        (output_convention: None for the handle's; "mujoco": MuJoCo's coordinates and mj_integratePos)"""
+        conv = self.output_convention if output_convention is None else output_convention
+        if conv not in ("pinocchio", "mujoco"):
+            raise ValueError(f"output_convention: expected 'pinocchio' or 'mujoco', got {conv!r}")
+        return _tangent_map(self, torch.as_tensor(q), torch.as_tensor(grad_q), "transpose",
+                            mujoco_coordinates(self, {"output_convention": conv}))
 
     def __repr__(self):
         return f"<rbdkit.torch.Handle of {self.model!r}: dtype={self.dtype}>"
@@ -362,8 +369,7 @@ add_operation_methods(Handle, "_method_call")
 def _check_differentiable(h, op, kw):
     """refuse, before the call, a derivative no rule gives (kw: the call, some tensor requiring grad)"""
     grad = lambda name: isinstance(kw.get(name), torch.Tensor) and kw[name].requires_grad  # noqa: E731
-    if op in _RULES and op not in ELEMENTWISE_RULES and h._quats \
-            and kw.get("output_convention", h.output_convention) == "mujoco":
+    if op in GAUSS_NEWTON_RULES and mujoco_coordinates(h, kw):
         raise NotImplementedError(f"rbdkit.torch: {op}'s derivative in MuJoCo's output convention on a model "
                                   f"with free-flyer or spherical joints is not available")
     if op in CONFIGURATION_RULES:
@@ -381,8 +387,9 @@ def _check_differentiable(h, op, kw):
 
 # ---------------------------------------------------------------- the coordinates' maps
 
-def _tangent_map(h, q, x, kind):
-    """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv)"""
+def _tangent_map(h, q, x, kind, mujoco=False):
+    """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv);
+    mujoco: MuJoCo's coordinates and ⊕ (rbdkit.jax's _tangent_map)"""
     if h._identity_map:  # every joint's coordinates are its tangent
         return x
     to_q = kind in ("pinv_T", "from_tangent")
@@ -395,9 +402,14 @@ def _tangent_map(h, q, x, kind):
     N = lambda A, y: torch.einsum("...ij,...j->...i", A, y)  # noqa: E731
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq
-        Q = half_q(torch, q[..., qq:qq + 4])
+        Q = half_q(torch, q[..., qq:qq + 4], w_first=mujoco)
         ivr = iv + 3 if joint == "free" else iv
-        if joint == "free":
+        if joint == "free" and mujoco:  # the position, additive in the world: E = I
+            if to_q:
+                out[..., iq:iq + 3] = x[..., iv:iv + 3]
+            else:
+                out[..., iv:iv + 3] = x[..., iq:iq + 3]
+        elif joint == "free":
             R = rotation(torch, q[..., qq:qq + 4])
             if to_q:
                 out[..., iq:iq + 3] = N(R, x[..., iv:iv + 3])
@@ -450,10 +462,11 @@ def _step_vjp(h, op, call, kw, grads, outs):
     grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
     args = dict(kw, **{k: (v.detach() if k == "f_ext" else v) for k, v in call.items()})
     x_next, AB = h._values(grad_op, args, outputs=0b11)
-    lam = torch.cat([_tangent_map(h, x_next[..., :nq], ct[..., :nq], "transpose"), ct[..., nq:]], -1)
+    mujoco = mujoco_coordinates(h, kw)  # (then [A | B] is along mj_integratePos)
+    lam = torch.cat([_tangent_map(h, x_next[..., :nq], ct[..., :nq], "transpose", mujoco), ct[..., nq:]], -1)
     g = _mtv(AB, lam)  # [g_q (tangent); g_qd; g_u]
     q = call["q"] if op == "integrator" else call["x"][..., :nq]
-    gq = _tangent_map(h, q, g[..., :nv], "pinv_T")
+    gq = _tangent_map(h, q, g[..., :nv], "pinv_T", mujoco)
     if op == "integrator":
         return {"q": gq, "qd": g[..., nv:2 * nv], "u": g[..., 2 * nv:]}
     return {"x": torch.cat([gq, g[..., nv:2 * nv]], -1), "u": g[..., 2 * nv:]}

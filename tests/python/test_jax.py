@@ -161,6 +161,34 @@ def test_external_force_gradients_against_central_differences(name, floating):
             < 1e-6, op
 
 
+@pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
+def test_step_gradients_in_mujoco_coordinates(name, floating):
+    # output_convention="mujoco" on models with quaternions: x in MuJoCo's qpos/qvel, [A | B] along
+    # mj_integratePos; reverse mode against central differences along that retraction, forward mode
+    # (a coordinate tangent E(x) d) against the coordinates' central differences
+    h = handle(name, floating)
+    nq, nv = h.nq, h.nv
+    q, qd, u = (a[0] for a in states(h, 1, seed=11))
+    x = h.numpy.state_to_mujoco(np.concatenate([q, qd]))
+    step = lambda x, d: np.concatenate([h.numpy.mujoco_integrate(x[:nq], d[:nv]), x[nq:] + d[nv:]])  # noqa: E731
+    w = np.random.default_rng(12).standard_normal(nq + nv)
+    d = np.random.default_rng(13).standard_normal(2 * nv)
+    for scheme in ("euler", "rk4"):
+        f = lambda x, u: h.numpy.plant_step(x, u, 0.01, scheme, output_convention="mujoco")  # noqa: E731
+        jf = lambda x, u: h.plant_step(x, u, 0.01, scheme, output_convention="mujoco")  # noqa: E731
+        gx, gu = jax.jit(jax.grad(lambda x, u: jnp.dot(w, jf(x, u)), argnums=(0, 1)))(x, u)
+        gx_t = np.concatenate([np.asarray(h.tangent_gradient(x[:nq], gx[:nq], output_convention="mujoco")), gx[nq:]])
+        assert rel(gx_t, w @ central_difference(lambda z: f(z, u), x, step=step, n=2 * nv)) < 1e-6, scheme
+        assert rel(gu, w @ central_difference(lambda z: f(x, z), u)) < 1e-6, scheme
+        dx = np.concatenate([np.asarray(h.from_tangent(x[:nq], d[:nv], output_convention="mujoco")), d[nv:]])
+        _, jvp = jax.jvp(lambda x: jf(x, u), (x,), (dx,))
+        eps = 1e-6
+        want = (f(step(x, eps * d), u) - f(step(x, -eps * d), u)) / (2 * eps)
+        assert rel(jvp, want) < 1e-6, scheme
+    with pytest.raises(ValueError, match="output_convention"):
+        h.tangent_gradient(x[:nq], gx[:nq], output_convention="mj")
+
+
 # every robot family with an explicit and an implicit-stage scheme, every scheme on a floating base
 STEP_CASES = [(n, f, s) for n, f in MODELS for s in ("euler", "rk4")] + \
     [("hyq", True, s) for s in SCHEMES if s not in ("euler", "rk4")]
@@ -308,14 +336,14 @@ def test_operations_without_a_rule_and_f_ext_say_so():
         jax.grad(lambda o: jnp.sum(h.end_effector_pose(q, ee_offsets=o)))(np.zeros((1, 3)))
     with pytest.raises(NotImplementedError, match="f_ext is not available yet"):
         jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, f_ext=f)))(np.zeros((h.nb, 6)))
-    # MuJoCo's coordinates on a model with quaternions: values, but no derivative
+    # MuJoCo's coordinates on a model with quaternions: the Gauss–Newton costs' values, but no derivative
     hq = handle("hyq", True)
-    x = np.concatenate(states(hq, 1)[:2], -1)[0]
-    xm = hq.numpy.state_to_mujoco(x)
-    np.testing.assert_array_equal(np.asarray(hq.plant_step(xm, np.zeros(hq.nv), 0.01, output_convention="mujoco")),
-                                  hq.numpy.plant_step(xm, np.zeros(hq.nv), 0.01, output_convention="mujoco"))
+    qm = hq.numpy.state_to_mujoco(np.concatenate(states(hq, 1)[:2], -1)[0])[:hq.nq]
+    args = (qm, np.zeros(3), np.ones(3))
+    np.testing.assert_array_equal(np.asarray(hq.com_cost(*args, output_convention="mujoco")[0]),
+                                  hq.numpy.com_cost(*args, output_convention="mujoco")[0])
     with pytest.raises(NotImplementedError, match="MuJoCo's output convention"):
-        jax.grad(lambda u: jnp.sum(hq.plant_step(xm, u, 0.01, output_convention="mujoco")))(np.zeros(hq.nv))
+        jax.grad(lambda q: hq.com_cost(q, *args[1:], output_convention="mujoco")[0])(qm)
     # f_ext as a constant: fine
     g = jax.grad(lambda u: jnp.sum(h.aba(q, qd, u, f_ext=np.ones((h.nb, 6)))))(u)
     assert np.all(np.isfinite(g))

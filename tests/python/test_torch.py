@@ -152,6 +152,17 @@ def test_quaternion_models_against_central_differences(name, floating):
                    w @ central_difference(lambda z: f(z, qd, u, f_ext=fx), q, **manifold)) < 1e-6, op
         assert rel(tf.grad.reshape(-1), w @ central_difference(lambda z: f(q, qd, u, f_ext=z.reshape(h.nb, 6)),
                                                                fx.ravel())) < 1e-6, op
+    # plant_step in MuJoCo's coordinates ([A | B] along mj_integratePos)
+    x = h.numpy.state_to_mujoco(np.concatenate([q, qd]))
+    nq, nv = h.nq, h.nv
+    step = lambda x, d: np.concatenate([h.numpy.mujoco_integrate(x[:nq], d[:nv]), x[nq:] + d[nv:]])  # noqa: E731
+    wx = np.random.default_rng(5).standard_normal(nq + nv)
+    tx, tu = tensors(x, u)
+    (h.plant_step(tx, tu, 0.01, "rk4", output_convention="mujoco") @ torch.tensor(wx)).backward()
+    f = lambda x, u: h.numpy.plant_step(x, u, 0.01, "rk4", output_convention="mujoco")  # noqa: E731
+    gx = torch.cat([h.tangent_gradient(tx.detach()[:nq], tx.grad[:nq], output_convention="mujoco"), tx.grad[nq:]])
+    assert rel(gx, wx @ central_difference(lambda z: f(z, u), x, step=step, n=2 * nv)) < 1e-6
+    assert rel(tu.grad, wx @ central_difference(lambda z: f(x, z), u)) < 1e-6
     for scheme in ("euler", "rk4"):
         tq, tqd, tu = tensors(q, qd, u)
         wx = np.random.default_rng(4).standard_normal(h.nq + h.nv)
