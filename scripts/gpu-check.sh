@@ -79,6 +79,10 @@ if [[ "$prebuilt" == 1 ]] || "$PY" -c "import numpy, nanobind, scikit_build_core
     -Ccmake.define.CMAKE_CUDA_ARCHITECTURES="$ARCH"
   step "Python CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q -p no:cacheprovider \
     tests/python/test_cuda.py
+  if "$PY" -c "import torch; assert torch.cuda.is_available()" 2>/dev/null; then
+    step "rbdkit.torch on CUDA tensors" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q -p no:cacheprovider \
+      tests/python/test_torch.py -k cuda
+  fi
   step "bench/gpu.py" "$PY" bench/gpu.py "${bench_args[@]}" --out build/gpu/gpu_bench.md
 else
   summary+=("| Python tests and bench/gpu.py | skipped: numpy, nanobind or scikit-build-core missing |")

@@ -106,6 +106,12 @@ def half_q(xp, quat, w_first=False):
     return 0.5 * xp.stack(rows[3:] + rows[:3] if w_first else rows, -2)
 
 
+def on_device_of(a, ref):
+    """a on ref's device where ref is a CUDA tensor (a rule's constants, made on the CPU); JAX places its
+    arrays itself"""
+    return a.to(ref.device) if getattr(ref, "is_cuda", False) else a
+
+
 def call_keywords(op, names, args, kwargs):
     """a call's positional and keyword arguments as keywords, by the operation's argument names"""
     if len(args) > len(names):
@@ -139,7 +145,7 @@ def configuration_jacobians(xp, h, op, call, values):
     q = call["q"]
     nv = h.nv
     if op in ("crba", "minv"):
-        zero = xp.zeros(tuple(q.shape[:-1]) + (nv,), dtype=q.dtype)
+        zero = on_device_of(xp.zeros(tuple(q.shape[:-1]) + (nv,), dtype=q.dtype), q)
         dM = values("idsva_so", {"q": q, "qd": zero, "qdd": zero})[3]  # (..., nv, nv, nv): ∂M_ij/∂δ_k
         if op == "crba":
             return values("crba", {"q": q}), [dM]
@@ -147,19 +153,19 @@ def configuration_jacobians(xp, h, op, call, values):
         Minv = out[0] if call.get("output_dense", True) else values("minv", {"q": q})[0]
         D = -xp.einsum("...ia,...abk,...bj->...ijk", Minv, dM, Minv)
         if not call.get("output_dense", True):  # the output is the upper triangle
-            D = D * xp.triu(xp.ones((nv, nv), dtype=q.dtype))[..., None]
+            D = D * on_device_of(xp.triu(xp.ones((nv, nv), dtype=q.dtype)), q)[..., None]
         return out, [D]
     if op == "com":
         return values("com", call), values("jacobian_com", {"q": q})
     if op == "frame_placement":
         R, p = values("frame_placement", call)
         J = values("frame_jacobian", dict(call, reference_frame="LOCAL"))[0]
-        eps = xp.asarray(_LEVI_CIVITA, dtype=R.dtype)
+        eps = on_device_of(xp.asarray(_LEVI_CIVITA, dtype=R.dtype), R)
         dR = -xp.einsum("...ia,ajk,...kn->...ijn", R, eps, J[..., 3:, :])
         dp = xp.einsum("...ia,...an->...in", R, J[..., :3, :])
         return [R, p], [dR, dp]
     if op == "frame_jacobian":
-        directions = xp.eye(nv, dtype=q.dtype)  # (nv, nv): the k-th is e_k
+        directions = on_device_of(xp.eye(nv, dtype=q.dtype), q)  # (nv, nv): the k-th is e_k
         dJ = values("frame_jacobian_dot", dict(call, q=q[..., None, :], qd=directions))[0]  # (..., k, 6, nv)
         return values("frame_jacobian", call), [xp.moveaxis(dJ, -3, -1)]
     if op == "end_effector_pose":
@@ -285,9 +291,9 @@ def gauss_newton_value_vjp(xp, h, op, call, outs, cv, values, pinv_t):
     else:  # ee_pos_cost: r = p_ee(q) - p_des, p_ee the end effector's tool point
         name, offset = call.get("ee_joint_name"), call.get("ee_offset")
         if name is None:  # the first of the default end effectors (every leaf): the offset given to each
+            n_ee = values("end_effector_pose", {"q": q})[0].shape[-2]
             ee = {"ee_offsets": None if offset is None else
-                  offset[..., None, :] * xp.ones((values("end_effector_pose", {"q": q})[0].shape[-2], 1),
-                                                 dtype=q.dtype)}
+                  offset[..., None, :] * on_device_of(xp.ones((n_ee, 1), dtype=q.dtype), q)}
         else:
             ee = {"ee_joint_names": [name], "ee_offsets": None if offset is None else offset[..., None, :]}
         r = values("end_effector_pose", dict(ee, q=q))[0][..., 0, :3] - call["p_des"]
@@ -309,9 +315,10 @@ def regressor_jacobians(xp, h, call, values, wanted):
         dY = xp.moveaxis(values("inverse_dynamics_regressor_gradient", call)[0], -3, -1)  # (..., nv, 10nb, 2nv)
         J["q"], J["qd"] = dY[..., :nv], dY[..., nv:]
     if "qdd" in wanted:
-        directions = xp.eye(nv, dtype=q.dtype)
-        Ya = values("inverse_dynamics_regressor", {"q": q[..., None, :], "qd": xp.zeros((nv,), dtype=q.dtype),
-                                                   "qdd": directions, "gravity": 0.0})[0]  # (..., k, nv, 10nb)
+        directions = on_device_of(xp.eye(nv, dtype=q.dtype), q)
+        zero = on_device_of(xp.zeros((nv,), dtype=q.dtype), q)
+        Ya = values("inverse_dynamics_regressor", {"q": q[..., None, :], "qd": zero, "qdd": directions,
+                                                   "gravity": 0.0})[0]  # (..., k, nv, 10nb)
         J["qdd"] = xp.moveaxis(Ya, -3, -1)
     return J
 

@@ -164,7 +164,8 @@ def _ffi_call(xs, n_batch, out_shapes, dtype, attributes):
             mesh, spec = sharding.mesh, tuple(sharding.spec) + (None,) * n_batch
         else:  # (a sharding without a mesh: replicated)
             spec = (None,) * n_batch
-        named = lambda r: jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(*spec[:n_batch], *(None,) * r))  # noqa: E731
+        P = jax.sharding.PartitionSpec
+        named = lambda r: jax.sharding.NamedSharding(mesh, P(*spec[:n_batch], *(None,) * r))  # noqa: E731
         return mesh, tuple(named(r) for r in ranks), tuple(named(len(s)) for s in out_shapes)
 
     def partition(mesh, arg_shapes, result_shape):

@@ -9,8 +9,11 @@ traces it without graph breaks.
     qdd.sum().backward()                     # q.grad, qd.grad, u.grad: analytical
 
 Methods are named, ordered and checked as rbdkit.Handle's, and take any
-leading batch shape (broadcast on the leading axes). Tensors are CPU tensors
-in the handle's dtype (float64 by default); parameters are Python values.
+leading batch shape (broadcast on the leading axes). Tensors are in the
+handle's dtype (float64 by default; others are converted); parameters are
+Python values. Handle(model, backend="cuda") runs on the CUDA backend: CUDA
+tensors are read and written in place on PyTorch's current stream (outputs
+on their device), CPU tensors are copied to the device and back.
 
 Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/∂f_ext), forward_dynamics
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
@@ -62,7 +65,8 @@ _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
 _AUTOGRAD = object()  # Handle._eager: "this call needs autograd"
 _ARGUMENT_NAMES = {op: [a[0] for a in args] for op, args in _SIGNATURES.items()}
-_ARRAY_ARGUMENTS = {op: frozenset(a[0] for a in args if a[1] in ("array", "optional")) for op, args in _SIGNATURES.items()}
+_ARRAY_ARGUMENTS = {op: frozenset(a[0] for a in args if a[1] in ("array", "optional"))
+                    for op, args in _SIGNATURES.items()}
 # a C++ handle's address -> its rbdkit.torch.Handle, for the life of the process: a graph (autograd's,
 # torch.compile's) holds the address and may run after the Python handle is gone; handles are few
 _HANDLES = {}
@@ -75,21 +79,23 @@ _core.disable_leak_warnings()  # (those handles are kept on purpose)
 def _kernel(xs, handle, op, slots, outputs, reals, choices, ee, batch, out_shapes, out_ranks, params=""):
     """operation `op` of the C++ handle at `handle` on xs (arguments `slots`, each (*batch, shape)),
     returning its outputs `outputs` (*batch, shape), the shapes flattened in out_shapes / out_ranks"""
-    dtype = _HANDLES[handle].dtype
+    h = _HANDLES[handle]
+    dtype, device = h.dtype, xs[0].device if xs else torch.device("cpu")
     for x in xs:
-        if x.dtype != dtype or x.device.type != "cpu":
-            raise TypeError(f"rbdkit::call: expected CPU tensors of the handle's dtype {dtype}, got {x.dtype} on "
-                            f"{x.device}")
+        if x.dtype != dtype or x.device != device:
+            raise TypeError(f"rbdkit::call: expected tensors of the handle's dtype {dtype}, all on one device, got "
+                            f"{x.dtype} on {x.device}")
+    on_device = h._check_device(device)
     xs = [x.contiguous() for x in xs]
-    outs = [torch.empty(tuple(batch) + s, dtype=dtype) for s in _shapes(out_shapes, out_ranks)]
+    outs = [torch.empty(tuple(batch) + s, dtype=dtype, device=device) for s in _shapes(out_shapes, out_ranks)]
     B = math.prod(batch) if len(batch) else -1
     _core.run_raw(handle, op, slots, [x.data_ptr() for x in xs], [x.numel() for x in xs], outputs,
                   [o.data_ptr() for o in outs], [o.numel() for o in outs], reals, choices, ee, B,
-                  8 if dtype == torch.float64 else 4)
+                  8 if dtype == torch.float64 else 4, on_device)
     return outs
 
 
-@torch.library.custom_op("rbdkit::call", mutates_args=(), device_types="cpu")
+@torch.library.custom_op("rbdkit::call", mutates_args=(), device_types=("cpu", "cuda"))
 def _call(xs: list[torch.Tensor], handle: int, op: int, slots: list[int], outputs: list[int], reals: list[float],
           choices: list[int], ee: list[int], batch: list[int], out_shapes: list[int],
           out_ranks: list[int], params: str) -> list[torch.Tensor]:
@@ -199,11 +205,13 @@ class Handle:
     """A robot's operations on PyTorch tensors (module doc). Attributes: model, numpy (the
     rbdkit.Handle that runs the calls), dtype (a torch dtype), nq, nv, nb."""
 
-    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
+    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio",
+                 backend="cpu"):
         if isinstance(dtype, torch.dtype):
             dtype = str(dtype).replace("torch.", "")
-        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), "cpu", dtype, threads,
+        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), backend, dtype, threads,
                                   output_convention)
+        self.backend = self.numpy.backend
         self.model = self.numpy.model
         self.dtype = getattr(torch, self.numpy.dtype.name)
         self.nq, self.nv, self.nb = self.model.nq, self.model.nv, self.model.nb
@@ -222,6 +230,18 @@ class Handle:
     def has(self, name):
         return self.numpy.has(name)
 
+    def _check_device(self, device):
+        """whether tensors on `device` are device arrays for the C++ handle (CUDA tensors of a
+        backend="cuda" handle, then on PyTorch's current stream); CPU tensors are host arrays on
+        either backend (a backend="cuda" handle copies them to its device)"""
+        if device.type == "cpu":
+            return False
+        if device.type != "cuda" or self.backend != "cuda":
+            raise ValueError(f"rbdkit.torch: tensors on {device} need a handle with backend='cuda' (this one's backend "
+                             f"is {self.backend!r}); CPU tensors work on either")
+        self.numpy.set_stream(torch.cuda.current_stream(device).cuda_stream)
+        return True
+
     def _values(self, op, kwargs, outputs=-1, eager_autograd=False):
         """the results of op (rbdkit.Handle's, or the outputs of mask `outputs`) as a list of tensors
         (eager_autograd: recorded for autograd by _EagerCall, not by the custom operator)"""
@@ -238,15 +258,20 @@ class Handle:
                 params.append((name, tuple(v) if isinstance(v, list) else v))
         op_id, arrays, reals, choices, ee, outs, key = _plan(self._address, op, tuple(params), tuple(tensors),
                                                              outputs)
-        xs = []
+        xs, device = [], None  # the call's device: its tensors' (NumPy inputs follow them)
+        for k, name, shape in arrays:
+            if isinstance(kwargs[name], torch.Tensor):
+                if device is not None and tensors[name].device != device:
+                    raise ValueError(f"{name}: expected a tensor on {device}, as the call's others, got one on "
+                                     f"{tensors[name].device}")
+                device = tensors[name].device
+        if device is not None:
+            self._check_device(device)
         for k, name, shape in arrays:
             x = tensors[name]
-            if x.device.type != "cpu":
-                raise ValueError(f"{name}: expected a CPU tensor (rbdkit.torch runs on the CPU engine), got one "
-                                 f"on {x.device}")
             if x.is_complex() or x.dtype == torch.bool:
                 raise TypeError(f"{name}: expected a real tensor, got dtype {x.dtype}")
-            x = x.to(self.dtype)
+            x = x.to(device=device, dtype=self.dtype)
             n = len(shape)
             if x.dim() < n or tuple(x.shape[x.dim() - n:]) != tuple(shape):
                 raise ValueError(f"{name}: expected shape (..., {', '.join(map(str, shape))}) (any leading batch "
@@ -283,9 +308,9 @@ class Handle:
         """the outputs of a call with no autograd, outside torch.compile, as a list: the kernel on the
         tensors' memory, the call's layout cached per operation, parameters and arrays present (a few
         µs on top of the engine). None where the general path (_values) must take it: an array that
-        is not a contiguous CPU tensor of the handle's dtype, leading shapes that need broadcasting, a
-        shape other than the planned one (the general path's message), an unhashable parameter;
-        _AUTOGRAD where a tensor requires grad and autograd is on"""
+        is not a contiguous tensor of the handle's dtype, tensors on several devices, leading shapes
+        that need broadcasting, a shape other than the planned one (the general path's message), an
+        unhashable parameter; _AUTOGRAD where a tensor requires grad and autograd is on"""
         arrays, key, xs, grad = _ARRAY_ARGUMENTS[op], [op, outputs], [], torch.is_grad_enabled()
         for name, v in kw.items():
             if name in arrays and v is not None:
@@ -306,10 +331,11 @@ class Handle:
             if plan is None:
                 return None
         raw, shapes, out_shapes = plan
-        dtype, lead = self.dtype, None
+        dtype, lead, cpu = self.dtype, None, True
         for x, shape in zip(xs, shapes):  # (arguments in the call's order: run_raw takes them so)
-            if not (x.is_cpu and x.dtype is dtype and x.is_contiguous()):
+            if not (x.dtype is dtype and x.is_contiguous()):
                 return None
+            cpu = cpu and x.is_cpu
             if lead is None:
                 n = x.dim() - len(shape)
                 if n < 0 or x.shape[n:] != shape:
@@ -318,8 +344,17 @@ class Handle:
             elif x.shape != lead + shape:
                 return None
         lead = lead or ()
-        res = [torch.empty(*lead, *s, dtype=dtype) for s in out_shapes]  # (varargs: faster than a tuple)
-        raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
+        if cpu:
+            res = [torch.empty(*lead, *s, dtype=dtype) for s in out_shapes]  # (varargs: faster than a tuple)
+            raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
+            return res
+        devices = {x.device for x in xs}
+        if len(devices) != 1:
+            return None
+        device = devices.pop()
+        on_device = self._check_device(device)
+        res = [torch.empty(*lead, *s, dtype=dtype, device=device) for s in out_shapes]
+        raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1, on_device)
         return res
 
     def _eager_plan(self, op, kw, key, outputs):
@@ -346,7 +381,9 @@ class Handle:
         """τ = Y(q, qd, qdd) π (..., nv): the inverse dynamics with the inertial parameters pi (..., 10·nb,
         Model.inertial_parameters' layout) as a tensor, differentiable in pi and in q, qd, qdd (rbdkit.jax's
         module doc, "Inertial parameters"); no f_ext"""
-        return inverse_dynamics_with_parameters(torch, self, q, qd, qdd, torch.as_tensor(pi, dtype=self.dtype),
+        device = q.device if isinstance(q, torch.Tensor) else None
+        return inverse_dynamics_with_parameters(torch, self, q, qd, qdd, torch.as_tensor(pi, dtype=self.dtype,
+                                                                                         device=device),
                                                 gravity, self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)

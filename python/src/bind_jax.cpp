@@ -41,14 +41,16 @@ namespace ops = rbd::ops;
 // (out_counts[j] values) is output outputs[j]; reals and choices per
 // argument; ee the end effectors' bodies. B: the samples (-1: the first
 // array's; every array must hold B, every output B of its shape).
-// value_bytes: the arrays' element size (the handle's dtype's). Returns "" or
+// value_bytes: the arrays' element size (the handle's dtype's). device: the
+// arrays are device arrays of a backend="cuda" handle (Handle::run_device, on
+// its stream), else host arrays (Handle::run). Returns "" or
 // the error (invalid: a bad argument rather than a failed computation). The
 // XLA FFI handler (rbdkit.jax) and rbdkit.torch's kernel call it.
 std::string rbdkit_run_raw(rbd::Handle* h, int64_t op_id, const int64_t* slots, const void* const* ins,
                            const long* in_counts, size_t n_in, const int64_t* outputs, void* const* outs,
                            const long* out_counts, size_t n_out, const double* reals, size_t n_reals,
                            const int64_t* choices, size_t n_choices, const int64_t* ee, size_t n_ee, long B,
-                           size_t value_bytes, bool& invalid) {
+                           size_t value_bytes, bool device, bool& invalid) {
   invalid = true;
   if (!h || op_id < 0 || op_id >= static_cast<int64_t>(ops::op_table().size()) || !h->has_op(static_cast<int>(op_id)))
     return "rbdkit: no such operation on this handle";
@@ -88,7 +90,10 @@ std::string rbdkit_run_raw(rbd::Handle* h, int64_t op_id, const int64_t* slots, 
   if (B == 0) return "";  // an empty batch
   c.B = B;
   try {
-    h->run(static_cast<int>(op_id), c);
+    if (device)
+      h->run_device(static_cast<int>(op_id), c);
+    else
+      h->run(static_cast<int>(op_id), c);
   } catch (const std::invalid_argument& e) {
     return e.what();
   } catch (const std::exception& e) {
@@ -136,7 +141,7 @@ ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t hand
   const std::string err = rbdkit_run_raw(
       h, op_id, slots.begin(), ins.data(), in_counts.data(), ins.size(), outputs.begin(), outs.data(),
       out_counts.data(), outs.size(), reals.begin(), reals.size(), choices.begin(), choices.size(), ee.begin(),
-      ee.size(), -1, want == ffi::DataType::F32 ? sizeof(float) : sizeof(double), invalid);
+      ee.size(), -1, want == ffi::DataType::F32 ? sizeof(float) : sizeof(double), false, invalid);
   if (err.empty()) return ffi::Error::Success();
   return invalid ? ffi::Error::InvalidArgument(err) : ffi::Error::Internal(err);
 }
@@ -183,7 +188,7 @@ struct RawCall {
       throw std::invalid_argument("RawCall: one per-sample size per input and per output");
   }
 
-  void operator()(const std::vector<uintptr_t>& ptrs, long B) const {
+  void operator()(const std::vector<uintptr_t>& ptrs, long B, bool device) const {
     const size_t n_in = slots.size(), n_out = outputs.size();
     if (ptrs.size() != n_in + n_out) throw nb::value_error("RawCall: expected one address per input and output");
     const long samples = B < 0 ? 1 : B;
@@ -200,7 +205,7 @@ struct RawCall {
       nb::gil_scoped_release nogil;
       err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p, in_c, n_in, outputs.data(),
                            out_p, out_c, n_out, reals.data(), reals.size(), choices.data(), choices.size(),
-                           ee.data(), ee.size(), B, value_bytes, invalid);
+                           ee.data(), ee.size(), B, value_bytes, device, invalid);
     }
     if (!err.empty()) {
       if (invalid) throw nb::value_error(err.c_str());
@@ -216,14 +221,15 @@ void bind_jax(nb::module_& m) {
   // their addresses), and the frameworks' caches may hold them past the atexit release: nanobind's
   // leak report at exit would name them
   m.def("disable_leak_warnings", [] { nb::set_leak_warnings(false); });
-  // rbdkit.torch's kernel: run_raw on arrays given as addresses (data_ptr()) and value counts;
-  // raises ValueError (a bad argument) or RuntimeError (a failed computation) with rbdkit's message
+  // rbdkit.torch's kernel: run_raw on arrays given as addresses (data_ptr()) and value counts (device:
+  // CUDA tensors of a backend="cuda" handle, on its stream); raises ValueError (a bad argument) or
+  // RuntimeError (a failed computation) with rbdkit's message
   m.def("run_raw", [](uintptr_t handle, int64_t op, const std::vector<int64_t>& slots,
                       const std::vector<uintptr_t>& ins, const std::vector<long>& counts,
                       const std::vector<int64_t>& outputs, const std::vector<uintptr_t>& outs,
                       const std::vector<long>& out_counts, const std::vector<double>& reals,
                       const std::vector<int64_t>& choices, const std::vector<int64_t>& ee, long B,
-                      size_t value_bytes) {
+                      size_t value_bytes, bool device) {
     if (slots.size() != ins.size() || counts.size() != ins.size() || outputs.size() != outs.size() ||
         out_counts.size() != outs.size())
       throw nb::value_error("run_raw: the arrays and their slots differ in number");
@@ -238,21 +244,21 @@ void bind_jax(nb::module_& m) {
       err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p.data(), counts.data(),
                            in_p.size(), outputs.data(), out_p.data(), out_counts.data(), out_p.size(), reals.data(),
                            reals.size(), choices.data(), choices.size(), ee.data(), ee.size(), B, value_bytes,
-                           invalid);
+                           device, invalid);
     }
     if (!err.empty()) {
       if (invalid) throw nb::value_error(err.c_str());
       throw std::runtime_error(err);
     }
   }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "out_counts"_a, "reals"_a,
-     "choices"_a, "ee"_a, "B"_a, "value_bytes"_a);
+     "choices"_a, "ee"_a, "B"_a, "value_bytes"_a, "device"_a = false);
 
   nb::class_<RawCall>(m, "RawCall")
       .def(nb::init<uintptr_t, int64_t, std::vector<int64_t>, std::vector<int64_t>, std::vector<int64_t>,
                     std::vector<int64_t>, std::vector<double>, std::vector<long>, std::vector<long>, size_t>(),
            "handle"_a, "op"_a, "slots"_a, "outputs"_a, "choices"_a, "ee"_a, "reals"_a, "in_values"_a,
            "out_values"_a, "value_bytes"_a)
-      .def("__call__", &RawCall::operator(), "ptrs"_a, "B"_a);
+      .def("__call__", &RawCall::operator(), "ptrs"_a, "B"_a, "device"_a = false);
 
   // {platform: PyCapsule of the XLA FFI handler} for jax.ffi.register_ffi_target; None in a build
   // without jaxlib's headers

@@ -268,3 +268,49 @@ def test_rollout_example_gradient_is_the_analytical_chain(tmp_path):
     assert err < 1e-12
     assert final < first * 1e-6 and joint_error < 1e-3
     assert plot.stat().st_size > 0
+
+
+def test_cuda_backend_in_interpret_mode(monkeypatch):
+    # backend="cuda": CPU tensors are host arrays the CUDA backend copies to its device; in interpret
+    # mode (RBDKIT_CUDA_INTERPRET=1, the kernels' source on the CPU) values and the autograd formulas
+    # through it equal the CPU handle's. CUDA tensors (device arrays on PyTorch's current stream) need
+    # a GPU: scripts/gpu-check.sh runs test_cuda_tensors_on_the_device there
+    monkeypatch.setenv("RBDKIT_CUDA_INTERPRET", "1")
+    model = rbdkit.robots.load("hyq", floating_base=True)
+    hc, h = rt.Handle(model, backend="cuda", threads=1), rt.Handle(model, threads=1)
+    assert hc.backend == "cuda"
+    q, qd, u = states(h, 4, seed=3)
+    for op, args in (("inverse_dynamics", (q, qd, u)), ("forward_dynamics", (q, qd, u)), ("crba", (q,)),
+                     ("integrator", (q, qd, u, 0.01, "rk4"))):
+        targs = [torch.tensor(a) if isinstance(a, np.ndarray) else a for a in args]
+        np.testing.assert_allclose(getattr(hc, op)(*targs).numpy(), getattr(h, op)(*targs).numpy(), rtol=1e-10,
+                                   atol=1e-10, err_msg=op)
+    grads = []
+    for hh in (hc, h):
+        tq, tqd, tu = tensors(q, qd, u)
+        (hh.forward_dynamics(tq, tqd, tu) ** 2).sum().backward()
+        grads.append([t.grad.numpy() for t in (tq, tqd, tu)])
+    for a, b in zip(*grads):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+    # tensors on another device: a CPU handle says which backend they need
+    with pytest.raises(ValueError, match="need a handle with backend='cuda'"):
+        h.crba(torch.empty(2, h.nq, dtype=torch.float64, device="meta"))
+
+
+@pytest.mark.skipif(os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1", reason="needs a GPU (scripts/gpu-check.sh)")
+def test_cuda_tensors_on_the_device():
+    # on a GPU: CUDA tensors in, CUDA tensors out, on PyTorch's current stream; values and gradients equal
+    # the CPU handle's
+    model = rbdkit.robots.load("hyq", floating_base=True)
+    hc, h = rt.Handle(model, backend="cuda"), rt.Handle(model, threads=1)
+    q, qd, u = states(h, 64, seed=4)
+    out = hc.forward_dynamics(*(torch.tensor(a).cuda() for a in (q, qd, u)))
+    assert out.is_cuda
+    np.testing.assert_allclose(out.cpu().numpy(), h.numpy.forward_dynamics(q, qd, u), rtol=1e-9, atol=1e-9)
+    grads = []
+    for hh, dev in ((hc, "cuda"), (h, "cpu")):
+        tq, tqd, tu = (torch.tensor(a, device=dev, requires_grad=True) for a in (q, qd, u))
+        (hh.forward_dynamics(tq, tqd, tu) ** 2).sum().backward()
+        grads.append([t.grad.cpu().numpy() for t in (tq, tqd, tu)])
+    for a, b in zip(*grads):
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-8)
