@@ -176,6 +176,26 @@ def bench(args, extra):
     return 0
 
 
+def generate(args):
+    """`rbdkit generate`: the header of a robot file or a bundled robot"""
+    from ._codegen import generate as write
+    robot = args.robot
+    if os.path.isfile(robot):
+        if robot.lower().endswith(".xml"):
+            if args.floating_base:
+                raise ValueError("--floating-base: a MuJoCo model says itself whether its root is free")
+            model = Model.from_mjcf(robot)
+        else:
+            model = Model.from_urdf(robot, floating_base=args.floating_base)
+    elif robot in robots.names():
+        model = robots.load(robot, floating_base=args.floating_base)
+    else:
+        raise FileNotFoundError(f"robot: '{robot}' is neither a file nor a bundled robot ({', '.join(robots.names())})")
+    write(model, args.name, args.output, source=os.path.basename(robot))
+    print(f"wrote {args.output}: struct rbdkit_generated::{args.name}, nq={model.nq} nv={model.nv} nb={model.nb}")
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="rbdkit", description="rigid-body dynamics for robots")
     sub = parser.add_subparsers(dest="cmd")
@@ -188,6 +208,16 @@ def main(argv=None):
     r.add_argument("--floating-base", action="store_true", help="add a free-flyer root joint")
     r.add_argument("--seed", type=int, default=0)
     sub.add_parser("robots", help="list the bundled robots")
+    g = sub.add_parser("generate", help="write a robot as a C++ header of per-robot functions",
+                       description="Writes ROBOT (a URDF, a MuJoCo XML or a bundled robot's name) as one C++ header: "
+                                   "the model as constants and per-robot inverse_dynamics, aba, crba, minv, their "
+                                   "gradients and integrator_gradient over rbdkit's header-only algorithms "
+                                   "(docs/generated-code.md). Compile it with -I \"$(python3 -c 'import rbdkit; "
+                                   "print(rbdkit.include_dir())')\".")
+    g.add_argument("robot", help="URDF (.urdf), MuJoCo model (.xml) or bundled robot name")
+    g.add_argument("--floating-base", action="store_true", help="add a free-flyer root joint (URDF)")
+    g.add_argument("--name", required=True, help="the struct's name (a C++ identifier)")
+    g.add_argument("-o", "--output", required=True, help="the header to write (NAME.hpp)")
     bp = sub.add_parser("bench", help="rbdkit vs Pinocchio per knot point: table, CSV, JSON, PNG",
                         description="Runs bench/run_batch.sh (else bench/run.sh) of the source checkout (extra "
                                     "Google Benchmark flags after --) and reports ns per knot point with the "
@@ -216,6 +246,8 @@ def main(argv=None):
             return 0
         if args.cmd == "bench":
             return bench(args, extra)
+        if args.cmd == "generate":
+            return generate(args)
         if args.cmd is None:
             return demo.main_from_args(parser.parse_args(["demo"]))
         if args.cmd == "demo":

@@ -16,6 +16,7 @@
 
 #include "arrays.hpp"
 #include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/codegen/generate.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -120,6 +121,9 @@ NB_MODULE(_core, m) {
       .def("neutral", &Model::neutral)
       .def("inertial_parameters", &Model::inertial_parameters)
       .def("with_inertial_parameters", &Model::with_inertial_parameters, "pi"_a);
+
+  // ---- per-robot generated code (`rbdkit generate`, rbdkit/codegen/generate.hpp)
+  m.def("generate_header", &rbd::generate_header, "model"_a, "name"_a, "source"_a = "");
 
   // ---- configuration space (the registered operations are bound by bind_ops.cpp;
   // Model.random_configuration takes this one before any RBD exists)
