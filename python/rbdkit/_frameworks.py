@@ -73,6 +73,15 @@ def mujoco_coordinates(h, call):
     return bool(h._quats) and call.get("output_convention", h.output_convention) == "mujoco"
 
 
+def mujoco_maps(h, output_convention):
+    """whether a handle's public tangent maps (to_tangent, from_tangent, tangent_gradient) use MuJoCo's
+    coordinates for `output_convention` (None: the handle's)"""
+    conv = h.output_convention if output_convention is None else output_convention
+    if conv not in ("pinocchio", "mujoco"):
+        raise ValueError(f"output_convention: expected 'pinocchio' or 'mujoco', got {conv!r}")
+    return mujoco_coordinates(h, {"output_convention": conv})
+
+
 def quaternion_joints(model):
     """[(kind, q_index, v_index)] of the joints whose coordinates are not their tangent space: free
     joints ("free": position, then a quaternion x y z w) and spherical ones ("spherical")"""

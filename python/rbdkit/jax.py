@@ -109,8 +109,8 @@ from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians,
                           elementwise_arguments, elementwise_jvp, gauss_newton_value_vjp, half_q,
-                          inverse_dynamics_with_parameters, mujoco_coordinates, one_dof_coordinates, quaternion_joints,
-                          regressor_jacobians, rotation, with_derivative_algorithms)
+                          inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
+                          quaternion_joints, regressor_jacobians, rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -158,12 +158,13 @@ def _ffi_call(xs, n_batch, out_shapes, dtype, attributes):
         results = [jax.ShapeDtypeStruct(local + s, dtype) for s in out_shapes]
         return tuple(jax.ffi.ffi_call(_TARGET, results, vmap_method="broadcast_all")(*args, **attributes))
 
-    def shardings(mesh, arg_shapes):  # the batch axes' sharding of the first input, the rest replicated
-        sharding = arg_shapes[0].sharding
-        if isinstance(sharding, jax.sharding.NamedSharding):
-            mesh, spec = sharding.mesh, tuple(sharding.spec) + (None,) * n_batch
-        else:  # (a sharding without a mesh: replicated)
-            spec = (None,) * n_batch
+    def shardings(mesh, arg_shapes):  # the batch axes' sharding of the first input sharded there, the rest replicated
+        spec = (None,) * n_batch  # (none sharded, or shardings without a mesh: replicated)
+        for shape in arg_shapes:
+            sharding = shape.sharding
+            if isinstance(sharding, jax.sharding.NamedSharding) and any(tuple(sharding.spec)[:n_batch]):
+                mesh, spec = sharding.mesh, tuple(sharding.spec) + (None,) * n_batch
+                break
         P = jax.sharding.PartitionSpec
         named = lambda r: jax.sharding.NamedSharding(mesh, P(*spec[:n_batch], *(None,) * r))  # noqa: E731
         return mesh, tuple(named(r) for r in ranks), tuple(named(len(s)) for s in out_shapes)
@@ -296,16 +297,16 @@ class Handle:
     # (output_convention: None for the handle's; "mujoco": MuJoCo's coordinates and mj_integratePos)
     def to_tangent(self, q, dq, output_convention=None):
         """E⁺(q) dq: a change dq (..., nq) of the coordinates at q as a tangent-space vector (..., nv)"""
-        return _tangent_map(self, q, dq, "to_tangent", _mujoco_maps(self, output_convention))
+        return _tangent_map(self, q, dq, "to_tangent", mujoco_maps(self, output_convention))
 
     def from_tangent(self, q, dv, output_convention=None):
         """E(q) dv: a tangent-space vector dv (..., nv) at q as a change of the coordinates (..., nq)"""
-        return _tangent_map(self, q, dv, "from_tangent", _mujoco_maps(self, output_convention))
+        return _tangent_map(self, q, dv, "from_tangent", mujoco_maps(self, output_convention))
 
     def tangent_gradient(self, q, grad_q, output_convention=None):
         """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from JAX's gradient with respect to the
         coordinates q (..., nq)"""
-        return _tangent_map(self, q, grad_q, "transpose", _mujoco_maps(self, output_convention))
+        return _tangent_map(self, q, grad_q, "transpose", mujoco_maps(self, output_convention))
 
     def __repr__(self):
         return f"<rbdkit.jax.Handle of {self.model!r}: dtype={self.dtype.name}>"
@@ -461,14 +462,6 @@ def _tangent_map(h, q, x, kind, mujoco=False):
         else:  # E⁺ = (QᵀQ/4)⁻¹ Qᵀ/2 = 4 (Q/2)ᵀ for a unit quaternion
             pieces.append((list(range(ivr, ivr + 3)), rot_scale * T(Q, x[..., qq:qq + 4])))
     return _assemble(pieces, h.nq if to_q else h.nv, batch, dtype)
-
-
-def _mujoco_maps(h, output_convention):
-    """whether the public tangent maps use MuJoCo's coordinates (rbdkit.Handle's check of the name)"""
-    conv = h.output_convention if output_convention is None else output_convention
-    if conv not in ("pinocchio", "mujoco"):
-        raise ValueError(f"output_convention: expected 'pinocchio' or 'mujoco', got {conv!r}")
-    return mujoco_coordinates(h, {"output_convention": conv})
 
 
 def _to_tangent(h, q, dq):

@@ -57,13 +57,14 @@ from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments,
                           elementwise_vjp, gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters,
-                          mujoco_coordinates, one_dof_coordinates, quaternion_joints, regressor_jacobians, rotation,
-                          transpose_jacobians, with_derivative_algorithms)
+                          mujoco_coordinates, mujoco_maps, one_dof_coordinates, quaternion_joints, regressor_jacobians,
+                          rotation, transpose_jacobians, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
 _AUTOGRAD = object()  # Handle._eager: "this call needs autograd"
+_PLAIN = (str, int, float, bool, type(None))  # parameter types Handle._eager caches a layout for
 _ARGUMENT_NAMES = {op: [a[0] for a in args] for op, args in _SIGNATURES.items()}
 _ARRAY_ARGUMENTS = {op: frozenset(a[0] for a in args if a[1] in ("array", "optional"))
                     for op, args in _SIGNATURES.items()}
@@ -294,11 +295,14 @@ class Handle:
 
     def _method_call(self, op, args, kwargs):
         kw = call_keywords(op, _ARGUMENT_NAMES[op], args, kwargs)
-        res = None if torch.compiler.is_compiling() else self._eager(op, kw)
+        compiling = torch.compiler.is_compiling()
+        res = None if compiling else self._eager(op, kw)
         if res is None:  # torch.compile, or a call _eager leaves to the general path
-            grad = not torch.compiler.is_compiling() and torch.is_grad_enabled() and \
-                any(isinstance(v, torch.Tensor) and v.requires_grad for v in kw.values())
-            res = _AUTOGRAD if grad else self._values(op, kw)
+            grad = torch.is_grad_enabled() and any(isinstance(v, torch.Tensor) and v.requires_grad
+                                                   for v in kw.values())
+            if grad and compiling:  # (the refusals are plain Python: they run at trace time)
+                _check_differentiable(self, op, kw)
+            res = _AUTOGRAD if grad and not compiling else self._values(op, kw)
         if res is _AUTOGRAD:
             _check_differentiable(self, op, kw)
             res = self._values(op, kw, eager_autograd=True)  # autograd without the operator's dispatch
@@ -320,12 +324,13 @@ class Handle:
                     return _AUTOGRAD
                 xs.append(v)
                 key.append(name)
-            else:
-                key.append((name, tuple(v) if isinstance(v, list) else v))
-        try:
-            plan = self._plans.get(tuple(key))
-        except TypeError:  # an unhashable parameter
-            return None
+            elif type(v) in _PLAIN:  # (the type too: True, 1 and 1.0 are equal keys, not equal arguments)
+                key.append((name, type(v), v))
+            elif type(v) in (list, tuple) and all(type(e) in _PLAIN for e in v):
+                key.append((name, tuple, tuple(v)))
+            else:  # a tensor, an array or another object as a parameter: the general path's checks
+                return None
+        plan = self._plans.get(tuple(key))
         if plan is None:
             plan = self._eager_plan(op, kw, key, outputs)
             if plan is None:
@@ -361,13 +366,14 @@ class Handle:
         """_eager's layout of a call (its arrays in the call's order), cached under key; None for a call
         the general path must refuse"""
         try:
+            arrays = _ARRAY_ARGUMENTS[op]
             op_id, planned, reals, choices, ee, outs = self._core.plan(
-                op, (), {n: (0 if isinstance(v, torch.Tensor) else v) for n, v in kw.items()}, outputs)
+                op, (), {n: (0 if n in arrays and v is not None else v) for n, v in kw.items()}, outputs)
         except (TypeError, ValueError):
             return None
         sig = _SIGNATURES[op]
         shape_of = {sig[k][0]: (k, tuple(s)) for k, _, s in planned}
-        present = [n for n in key[2:] if isinstance(n, str)]
+        present = [n for n in key[2:] if isinstance(n, str)]  # (the arrays' names; parameters are tuples)
         shapes, out_shapes = [shape_of[n][1] for n in present], [tuple(s) for _, s in outs]
         raw = _core.RawCall(self._address, op_id, [shape_of[n][0] for n in present], [o for o, _ in outs], choices,
                             ee, reals, [math.prod(s) for s in shapes], [math.prod(s) for s in out_shapes],
@@ -390,11 +396,9 @@ class Handle:
     def tangent_gradient(self, q, grad_q, output_convention=None):
         """Eᵀ(q) grad_q: the tangent-space gradient (..., nv) from a gradient on the coordinates (..., nq)
         (output_convention: None for the handle's; "mujoco": MuJoCo's coordinates and mj_integratePos)"""
-        conv = self.output_convention if output_convention is None else output_convention
-        if conv not in ("pinocchio", "mujoco"):
-            raise ValueError(f"output_convention: expected 'pinocchio' or 'mujoco', got {conv!r}")
-        return _tangent_map(self, torch.as_tensor(q), torch.as_tensor(grad_q), "transpose",
-                            mujoco_coordinates(self, {"output_convention": conv}))
+        grad_q = torch.as_tensor(grad_q)
+        g = _tangent_map(self, torch.as_tensor(q), grad_q, "transpose", mujoco_maps(self, output_convention))
+        return g.clone() if g is grad_q else g
 
     def __repr__(self):
         return f"<rbdkit.torch.Handle of {self.model!r}: dtype={self.dtype}>"
@@ -428,7 +432,8 @@ def _tangent_map(h, q, x, kind, mujoco=False):
     """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv);
     mujoco: MuJoCo's coordinates and ⊕ (rbdkit.jax's _tangent_map)"""
     if h._identity_map:  # every joint's coordinates are its tangent
-        return x
+        return x if q.shape[:-1] == x.shape[:-1] else x.expand(torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+                                                                + x.shape[-1:])
     to_q = kind in ("pinv_T", "from_tangent")
     batch = torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     out = x.new_zeros(tuple(batch) + ((h.nq,) if to_q else (h.nv,)))

@@ -185,6 +185,14 @@ def test_cli_and_errors(tmp_path):
                           (["iiwa", "--name", "X", "-o", str(tmp_path / "no" / "X.hpp")], "does not exist")):
         r = subprocess.run([sys.executable, "-m", "rbdkit", "generate", *args], capture_output=True, text=True)
         assert r.returncode == 2 and message in r.stderr, (args, r.stderr)
+    for bad in ("class", "nq", "bodies", "rbd"):  # a keyword, the struct's members, a namespace it uses
+        with pytest.raises(ValueError, match="not a keyword or one of the struct's members"):
+            rbdkit.generate(rbdkit.robots.load("iiwa"), bad)
+    # names from the file stay inside their comment
+    urdf = open(os.path.join(URDF, "spherical.urdf")).read()
+    model = rbdkit.Model.from_urdf_string(urdf.replace('"l1"', '"a&#10;int x = ;"'))  # the link and its references
+    text = rbdkit.generate(model, "Injected")
+    assert "int x = ;" not in [line.strip() for line in text.splitlines()] and "a?int x = ;" in text
     with pytest.raises(TypeError, match="model: expected an rbdkit.Model"):
         rbdkit.generate("iiwa", "X")
     with pytest.raises(ValueError, match="name: expected a C\\+\\+ identifier"):

@@ -431,6 +431,11 @@ hlo = gj.lower(us).compile().as_text()
 calls = [l for l in hlo.splitlines() if 'custom_call_target="rbdkit_op"' in l]
 assert calls and all("f64[4,18,18]" in l for l in calls) and "all-gather" not in hlo, hlo
 np.testing.assert_allclose(np.asarray(gj(us)), np.asarray(g1), rtol=1e-13, atol=1e-12)
+# the first input replicated, the others sharded: the call still takes the batch sharding (no gather)
+qr = jax.device_put(q, NamedSharding(mesh, P()))
+hlo = fj.lower(qr, qds, us).compile().as_text()
+assert "all-gather" not in hlo, hlo
+np.testing.assert_array_equal(np.asarray(fj(qr, qds, us)), h.numpy.forward_dynamics(q, qd, u))
 # a sharded rollout step and a vmapped call under jit: the unsharded results
 x = jnp.concatenate([qs, qds], -1)
 np.testing.assert_array_equal(np.asarray(jax.jit(lambda x, u: h.plant_step(x, u, 0.01, "rk4"))(x, us)),

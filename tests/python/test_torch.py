@@ -234,6 +234,31 @@ def test_errors_are_clear():
         rt.Handle(h.model, algorithms=["inverse_dynamics"]).centroidal_momentum(q, qd)
 
 
+def test_refusals_under_torch_compile_and_parameters_that_are_tensors():
+    # torch.compile traces the same refusals as eager calls (a derivative no rule gives is never
+    # silently wrong); a tensor or an equal value of another type as a parameter never reuses a cached
+    # layout (gravity=tensor was read as 0, output_dense=1 passed after a True)
+    h = handle("hyq", True)
+    qm = h.numpy.state_to_mujoco(np.concatenate(states(h, 1)[:2], -1)[0])[:h.nq]
+    p_des, W = torch.zeros(3, dtype=torch.float64), torch.ones(3, dtype=torch.float64)
+    f = torch.compile(lambda q: h.com_cost(q, p_des, W, output_convention="mujoco")[0], fullgraph=True,
+                      backend="aot_eager")
+    with pytest.raises(Exception, match="MuJoCo's output convention|Observed exception"):
+        f(torch.tensor(qm, requires_grad=True))
+    g = torch.compile(lambda q, fx: h.aba(q, q.new_zeros(h.nv), q.new_zeros(h.nv), f_ext=fx).sum(), fullgraph=True,
+                      backend="aot_eager")
+    q = torch.tensor(states(h, 1)[0][0])
+    g(q, torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True)).backward()  # aba has f_ext's rule
+    hi = handle("iiwa", False)
+    q, qd, u = (torch.tensor(a) for a in states(hi, 2))
+    hi.inverse_dynamics(q, qd, u)  # a cached layout for gravity's default
+    with pytest.raises(TypeError, match="gravity"):
+        hi.inverse_dynamics(q, qd, u, gravity=torch.tensor(-9.81))
+    hi.minv(q, output_dense=True)
+    with pytest.raises(TypeError, match="output_dense"):
+        hi.minv(q, output_dense=1)
+
+
 def test_rbdkit_imports_without_torch():
     assert 'ImportError: rbdkit.torch needs PyTorch: pip install torch' in import_without('torch', 'torch')
 
