@@ -193,6 +193,8 @@ def test_cli_and_errors(tmp_path):
     model = rbdkit.Model.from_urdf_string(urdf.replace('"l1"', '"a&#10;int x = ;"'))  # the link and its references
     text = rbdkit.generate(model, "Injected")
     assert "int x = ;" not in [line.strip() for line in text.splitlines()] and "a?int x = ;" in text
+    with pytest.raises(ValueError, match="no moving body"):
+        rbdkit.generate(rbdkit.Model.from_urdf_string('<robot name="r"><link name="a"/></robot>'), "Empty")
     with pytest.raises(TypeError, match="model: expected an rbdkit.Model"):
         rbdkit.generate("iiwa", "X")
     with pytest.raises(ValueError, match="name: expected a C\\+\\+ identifier"):
