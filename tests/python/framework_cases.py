@@ -136,3 +136,12 @@ def import_without(framework, module):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
     assert r.returncode == 0, r.stderr
     return r.stdout
+
+
+def import_example(name):
+    """the module examples/<name>.py"""
+    sys.path.insert(0, os.path.join(ROOT, "examples"))
+    try:
+        return __import__(name)
+    finally:
+        sys.path.pop(0)

@@ -18,9 +18,10 @@ import rbdkit.jax as rj  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, Handles, central_difference, configuration_call,  # noqa: E402
-                             elementwise_cases, gauss_newton_cases, import_without, on_manifold, rel, states,
-                             tangent_difference, to_tangent_gradient)
+from framework_cases import (CONFIGURATION_CASES, SCHEMES, central_difference, configuration_call,  # noqa: E402
+                             elementwise_cases, gauss_newton_cases, Handles, import_example,
+                             import_without, on_manifold, rel, states, tangent_difference,
+                             to_tangent_gradient)
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
 # spherical, helical, planar (prismatic and continuous) and mimic joints
@@ -484,11 +485,7 @@ def test_system_identification_example_converges(tmp_path):
     # examples/jax_sysid.py: the gradient through the parametrisation and the regressor against central
     # differences; Adam brings the loss from ~1e7 to within 2x of the least-squares optimum, and the
     # held-out torque and mass-matrix errors down a hundredfold and fiftyfold
-    sys.path.insert(0, os.path.join(ROOT, "examples"))
-    try:
-        import jax_sysid
-    finally:
-        sys.path.pop(0)
+    jax_sysid = import_example("jax_sysid")
     plot = tmp_path / "sysid.png"
     r = jax_sysid.main(["--plot", str(plot)])
     assert r["grad_error"] < 1e-6

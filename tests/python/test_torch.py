@@ -16,9 +16,9 @@ torch = pytest.importorskip("torch") if os.environ.get("CI") != "true" else __im
 import rbdkit  # noqa: E402
 import rbdkit.torch as rt  # noqa: E402
 
-from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, Handles, central_difference,  # noqa: E402
-                             configuration_call, elementwise_cases, gauss_newton_cases, import_without, rel, states,
-                             tangent_difference, to_tangent_gradient)
+from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, central_difference, configuration_call,  # noqa: E402
+                             elementwise_cases, gauss_newton_cases, Handles, import_example,
+                             import_without, rel, states, tangent_difference, to_tangent_gradient)
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -283,11 +283,7 @@ def test_torch_distributed_under_torchrun():
 def test_rollout_example_gradient_is_the_analytical_chain(tmp_path):
     # examples/torch_rollout.py as it runs: autograd through 50 rk4 plant steps equals the [A | B]
     # chain, and L-BFGS brings every joint to the target (0.3 rad away) within 1e-3 rad, at rest
-    sys.path.insert(0, os.path.join(ROOT, "examples"))
-    try:
-        import torch_rollout
-    finally:
-        sys.path.pop(0)
+    torch_rollout = import_example("torch_rollout")
     plot = tmp_path / "rollout.png"
     err, first, final, joint_error = torch_rollout.main(["--plot", str(plot)])
     assert err < 1e-12
