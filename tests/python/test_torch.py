@@ -318,11 +318,21 @@ def test_cuda_backend_in_interpret_mode(monkeypatch):
         h.crba(torch.empty(2, h.nq, dtype=torch.float64, device="meta"))
 
 
-@pytest.mark.skipif(os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1", reason="needs a GPU (scripts/gpu-check.sh)")
-def test_cuda_tensors_on_the_device():
-    # on a GPU: CUDA tensors in, CUDA tensors out, on PyTorch's current stream; values and gradients equal
-    # the CPU handle's
+def test_cuda_tensors_on_the_device(monkeypatch):
+    # on a GPU (scripts/gpu-check.sh): CUDA tensors in, CUDA tensors out, on PyTorch's current stream;
+    # values and gradients equal the CPU handle's. Without one (CI), a cuda handle outside interpret
+    # mode is a clear error, as rbdkit.Handle's
+    monkeypatch.delenv("RBDKIT_CUDA_INTERPRET", raising=False)
     model = rbdkit.robots.load("hyq", floating_base=True)
+    compiled, devices = rbdkit.cuda_available()
+    if os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1" or not (compiled and devices > 0 and torch.cuda.is_available()):
+        assert os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1", "RBDKIT_TEST_CUDA_DEVICE=1 needs a CUDA device"
+        if compiled and devices > 0:  # a GPU without PyTorch's CUDA: the handle itself works
+            assert rt.Handle(model, backend="cuda").backend == "cuda"
+            return
+        with pytest.raises(RuntimeError, match="RBDKIT_CUDA_INTERPRET=1"):
+            rt.Handle(model, backend="cuda")
+        return
     hc, h = rt.Handle(model, backend="cuda"), rt.Handle(model, threads=1)
     q, qd, u = states(h, 64, seed=4)
     out = hc.forward_dynamics(*(torch.tensor(a).cuda() for a in (q, qd, u)))
