@@ -6,7 +6,7 @@ import os
 from . import _core
 
 
-def generate(model, name, path=None, source=None):
+def generate(model, name, path=None, source=None, runtime_inertias=False):
     """the header text for `model` (an rbdkit.Model) as struct `name` in
     namespace rbdkit_generated, written to `path` when one is given.
 
@@ -17,14 +17,17 @@ def generate(model, name, path=None, source=None):
     rbdkit's own header-only algorithms: compile it with -I on rbdkit's
     include folder (rbdkit.include_dir()), nothing to link, with g++, clang or
     nvcc (inside your kernels). `source` names where the model came from in
-    the header's first comment. ValueError for a name that is not a C++
-    identifier."""
+    the header's first comment. runtime_inertias: the inertias are an
+    argument instead of constants, `const S* pi` (10·nb, Model.inertial_parameters'
+    layout) first in every entry point, for identification. ValueError for a
+    name that is not a C++ identifier, is a keyword or one of the struct's
+    members, and for a model without bodies."""
     from ._model import Model
     if not isinstance(model, Model):
         raise TypeError(f"model: expected an rbdkit.Model, got {type(model).__name__}")
     if not isinstance(name, str):
         raise TypeError(f"name: expected a str, got {type(name).__name__}")
-    text = _core.generate_header(model._core, name, source or "")
+    text = _core.generate_header(model._core, name, source or "", bool(runtime_inertias))
     if path is not None:
         path = os.fspath(path)
         folder = os.path.dirname(os.path.abspath(path))

@@ -191,7 +191,7 @@ def generate(args):
         model = robots.load(robot, floating_base=args.floating_base)
     else:
         raise FileNotFoundError(f"robot: '{robot}' is neither a file nor a bundled robot ({', '.join(robots.names())})")
-    write(model, args.name, args.output, source=os.path.basename(robot))
+    write(model, args.name, args.output, source=os.path.basename(robot), runtime_inertias=args.runtime_inertias)
     print(f"wrote {args.output}: struct rbdkit_generated::{args.name}, nq={model.nq} nv={model.nv} nb={model.nb}")
     return 0
 
@@ -217,6 +217,8 @@ def main(argv=None):
     g.add_argument("robot", help="URDF (.urdf), MuJoCo model (.xml) or bundled robot name")
     g.add_argument("--floating-base", action="store_true", help="add a free-flyer root joint (URDF)")
     g.add_argument("--name", required=True, help="the struct's name (a C++ identifier)")
+    g.add_argument("--runtime-inertias", action="store_true",
+                   help="the inertias as an argument (pi, 10 per body, first in every function) for identification")
     g.add_argument("-o", "--output", required=True, help="the header to write (NAME.hpp)")
     bp = sub.add_parser("bench", help="rbdkit vs Pinocchio per knot point: table, CSV, JSON, PNG",
                         description="Runs bench/run_batch.sh (else bench/run.sh) of the source checkout (extra "

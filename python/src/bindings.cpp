@@ -123,7 +123,7 @@ NB_MODULE(_core, m) {
       .def("with_inertial_parameters", &Model::with_inertial_parameters, "pi"_a);
 
   // ---- per-robot generated code (`rbdkit generate`, rbdkit/codegen/generate.hpp)
-  m.def("generate_header", &rbd::generate_header, "model"_a, "name"_a, "source"_a = "");
+  m.def("generate_header", &rbd::generate_header, "model"_a, "name"_a, "source"_a = "", "runtime_inertias"_a = false);
 
   // ---- configuration space (the registered operations are bound by bind_ops.cpp;
   // Model.random_configuration takes this one before any RBD exists)

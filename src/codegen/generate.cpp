@@ -86,9 +86,22 @@ std::string comment_text(const std::string& s) {
   return out;
 }
 
+// body i's inertia read from pi (Model::inertial_parameters' layout: m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)
+std::string runtime_inertia(int i) {
+  const std::string b = "pi[" + std::to_string(10 * i);
+  auto at = [&](int k) { return k ? b + " + " + std::to_string(k) + "]" : b + "]"; };
+  return "{" + at(0) + ", {" + at(1) + ", " + at(2) + ", " + at(3) + "}, {{" + at(4) + ", " + at(5) + ", " + at(7) +
+         ", " + at(5) + ", " + at(6) + ", " + at(8) + ", " + at(7) + ", " + at(8) + ", " + at(9) + "}}}";
+}
+
+void replace_all(std::string& s, const std::string& from, const std::string& to) {
+  for (size_t k = s.find(from); k != std::string::npos; k = s.find(from, k + to.size())) s.replace(k, from.size(), to);
+}
+
 }  // namespace
 
-std::string generate_header(const Model& model, const std::string& name, const std::string& source) {
+std::string generate_header(const Model& model, const std::string& name, const std::string& source,
+                            bool runtime_inertias) {
   if (!is_identifier(name) || is_reserved(name))
     throw std::invalid_argument("name: expected a C++ identifier (letters, digits, _; not starting with a digit) "
                                 "that is not a keyword or one of the struct's members, got '" + comment_text(name) +
@@ -144,7 +157,9 @@ std::string generate_header(const Model& model, const std::string& name, const s
       << lit(d.offset) << ", " << lit(d.pitch) << ",\n"
       << "            " << vec3(d.axis) << ",\n"
       << "            {" << mat3(d.X_tree.R) << ", " << vec3(d.X_tree.p) << "},\n"
-      << "            {" << lit(d.I.m) << ", " << vec3(d.I.h) << ", " << mat3(d.I.I) << "}};\n";
+      << "            "
+      << (runtime_inertias ? runtime_inertia(i) : "{" + lit(d.I.m) + ", " + vec3(d.I.h) + ", " + mat3(d.I.I) + "}")
+      << "};\n";
   }
   o << "  }\n\n"
        "  // tau (nv) = M qdd + C qd + g(q): RNEA (qdd may be null: zero)\n"
@@ -210,7 +225,18 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "  };\n"
        "};\n\n"
        "}  // namespace rbdkit_generated\n";
-  return o.str();
+  if (!runtime_inertias) return o.str();
+  // the inertias as an argument: every entry point takes pi (10·nb) first, and its Call reads it
+  std::string text = o.str();
+  replace_all(text, "(const S* q, ", "(const S* pi, const S* q, ");
+  replace_all(text, "> c;\n", "> c(pi);\n");
+  replace_all(text, "bodies(rbd::BodyDesc<S>* b) {", "bodies(rbd::BodyDesc<S>* b, const S* pi) {");
+  replace_all(text, "RBD_HD Call() :", "RBD_HD explicit Call(const S* pi) :");
+  replace_all(text, "bodies(body);", "bodies(body, pi);");
+  replace_all(text, "// inertia in the body frame (m, m·c, I about the body origin)\n",
+              "// inertia in the body frame from pi, 10 per body (m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz about the\n"
+              "  // body origin: rbdkit.Model.inertial_parameters' layout; no consistency check here)\n");
+  return text;
 }
 
 }  // namespace rbd

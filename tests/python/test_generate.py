@@ -156,6 +156,49 @@ def test_generated_code_reads_no_uninitialised_memory(name, floating, tmp_path):
     assert r.returncode == 0 and "uninitialised" not in r.stderr, r.stderr[-4000:]
 
 
+RUNTIME = """#include "Robot.hpp"
+#include <cstdio>
+using G = rbdkit_generated::Robot;
+{arrays}
+int main() {{
+  double tau[G::nv], AB[2 * G::nv * 3 * G::nv], x[G::nq + G::nv];
+  G::inverse_dynamics(pi, q, qd, qdd_in, -9.81, tau);
+  for (double t : tau) std::printf("%.17g ", t);
+  std::printf("\\n");
+  if (!G::integrator_gradient(pi, q, qd, qdd_in, 0.01, 3, x, AB)) return 1;
+  for (double a : AB) std::printf("%.17g ", a);
+  std::printf("\\n");
+}}
+"""
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
+def test_generated_header_with_runtime_inertias(name, floating, tmp_path):
+    # --runtime-inertias: pi (10·nb) is the first argument; with other parameters than the file's the
+    # results equal a library model with those parameters
+    model = load(name, floating)
+    rng = np.random.default_rng(3)
+    pi = model.inertial_parameters()
+    pi2 = np.concatenate([p * rng.uniform(0.8, 1.25) for p in pi.reshape(-1, 10)])  # each body scaled: consistent
+    q = model.random_configuration(rng)
+    qd, qdd = rng.uniform(-1, 1, model.nv), rng.uniform(-1, 1, model.nv)
+    text = rbdkit.generate(model, "Robot", tmp_path / "Robot.hpp", runtime_inertias=True)
+    assert "const S* pi, const S* q," in text and "pi[" in text
+    arrays = c_array("pi", pi2) + c_array("q", q) + c_array("qd", qd) + c_array("qdd_in", qdd)
+    (tmp_path / "main.cpp").write_text(RUNTIME.format(arrays=arrays))
+    exe = tmp_path / "prog"
+    r = subprocess.run([compiler("g++"), "-std=c++17", "-O1", "-Wall", "-Wextra", "-Werror", "-I", rbdkit.include_dir(),
+                        "-I", str(tmp_path), str(tmp_path / "main.cpp"), "-o", str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-4000:]
+    r = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    tau, AB = (np.array([float(v) for v in line.split()]) for line in r.stdout.splitlines())
+    h2 = rbdkit.Handle(model.with_inertial_parameters(pi2), threads=1)
+    assert close(tau, h2.inverse_dynamics(q, qd, qdd))
+    assert close(AB, h2.integrator_gradient(q, qd, qdd, 0.01, "rk4"))
+    assert not close(tau, rbdkit.Handle(model, threads=1).inverse_dynamics(q, qd, qdd), tol=1e-6)
+
+
 def test_generated_header_compiles_with_clang(tmp_path):
     model = load("hyq", True)
     rng = np.random.default_rng(1)
@@ -202,6 +245,9 @@ def test_cli_and_errors(tmp_path):
     r = subprocess.run([sys.executable, "-m", "rbdkit", "generate", urdf, "--floating-base", "--name", "S", "-o",
                         str(tmp_path / "S.hpp")], capture_output=True, text=True)
     assert r.returncode == 0 and "rbd::kFree" in (tmp_path / "S.hpp").read_text(), r.stderr
+    r = subprocess.run([sys.executable, "-m", "rbdkit", "generate", "iiwa", "--runtime-inertias", "--name", "R", "-o",
+                        str(tmp_path / "R.hpp")], capture_output=True, text=True)
+    assert r.returncode == 0 and "const S* pi, const S* q," in (tmp_path / "R.hpp").read_text(), r.stderr
     for args, message in ((["iiwa", "--name", "3d", "-o", str(out)], "name: expected a C++ identifier"),
                           (["nope", "--name", "X", "-o", str(out)], "neither a file nor a bundled robot"),
                           (["iiwa", "--name", "X", "-o", str(tmp_path / "no" / "X.hpp")], "does not exist")):

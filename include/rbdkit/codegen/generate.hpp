@@ -13,8 +13,12 @@
 namespace rbd {
 
 // the header for `model` as struct `name` in namespace rbdkit_generated;
-// `source` (a path, a robot name) goes in its first comment. Throws
-// std::invalid_argument for a name that is not a C++ identifier.
-std::string generate_header(const Model& model, const std::string& name, const std::string& source = "");
+// `source` (a path, a robot name) goes in its first comment. runtime_inertias:
+// the inertias are not constants but an argument, pi (10·nb, in
+// Model::inertial_parameters' layout) first in every entry point (for
+// identification). Throws std::invalid_argument for a name that is not a C++
+// identifier, a keyword or a member's name, and for a model without bodies.
+std::string generate_header(const Model& model, const std::string& name, const std::string& source = "",
+                            bool runtime_inertias = false);
 
 }  // namespace rbd
