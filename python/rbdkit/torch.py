@@ -363,21 +363,19 @@ class Handle:
         return res
 
     def _eager_plan(self, op, kw, key, outputs):
-        """_eager's layout of a call (its arrays in the call's order), cached under key; None for a call
-        the general path must refuse"""
+        """_eager's layout of a call (_plan's, its arrays in the call's order) as a RawCall, cached under key;
+        None for a call the general path must refuse"""
+        present = [n for n in key[2:] if isinstance(n, str)]  # (the arrays' names; parameters are tuples)
+        params = tuple((n, tuple(v) if isinstance(v, list) else v) for n, v in kw.items() if n not in present)
         try:
-            arrays = _ARRAY_ARGUMENTS[op]
-            op_id, planned, reals, choices, ee, outs = self._core.plan(
-                op, (), {n: (0 if n in arrays and v is not None else v) for n, v in kw.items()}, outputs)
+            op_id, planned, reals, choices, ee, outs, _ = _plan(self._address, op, params, tuple(present), outputs)
         except (TypeError, ValueError):
             return None
-        sig = _SIGNATURES[op]
-        shape_of = {sig[k][0]: (k, tuple(s)) for k, _, s in planned}
-        present = [n for n in key[2:] if isinstance(n, str)]  # (the arrays' names; parameters are tuples)
-        shapes, out_shapes = [shape_of[n][1] for n in present], [tuple(s) for _, s in outs]
-        raw = _core.RawCall(self._address, op_id, [shape_of[n][0] for n in present], [o for o, _ in outs], choices,
-                            ee, reals, [math.prod(s) for s in shapes], [math.prod(s) for s in out_shapes],
-                            8 if self.dtype is torch.float64 else 4)
+        slot_shape = {name: (k, shape) for k, name, shape in planned}
+        shapes, out_shapes = [slot_shape[n][1] for n in present], [shape for _, shape in outs]
+        raw = _core.RawCall(self._address, op_id, [slot_shape[n][0] for n in present], [o for o, _ in outs],
+                            list(choices), list(ee), list(reals), [math.prod(s) for s in shapes],
+                            [math.prod(s) for s in out_shapes], 8 if self.dtype is torch.float64 else 4)
         plan = (raw, shapes, out_shapes)
         if len(self._plans) < 4096:
             self._plans[tuple(key)] = plan

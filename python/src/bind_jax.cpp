@@ -166,6 +166,26 @@ using namespace nb::literals;
 
 namespace {
 
+// rbdkit_run_raw with the GIL released, its error raised: ValueError for a bad argument, RuntimeError for a
+// failed computation (RawCall and run_raw below)
+void run_raw_or_raise(uintptr_t handle, int64_t op, const int64_t* slots, const void* const* ins, const long* in_counts,
+                      size_t n_in, const int64_t* outputs, void* const* outs, const long* out_counts, size_t n_out,
+                      const std::vector<double>& reals, const std::vector<int64_t>& choices,
+                      const std::vector<int64_t>& ee, long B, size_t value_bytes, bool device) {
+  bool invalid = false;
+  std::string err;
+  {
+    nb::gil_scoped_release nogil;
+    err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots, ins, in_counts, n_in, outputs, outs,
+                         out_counts, n_out, reals.data(), reals.size(), choices.data(), choices.size(), ee.data(),
+                         ee.size(), B, value_bytes, device, invalid);
+  }
+  if (!err.empty()) {
+    if (invalid) throw nb::value_error(err.c_str());
+    throw std::runtime_error(err);
+  }
+}
+
 // a call's layout fixed once (rbdkit.torch's eager calls, cached per operation and parameters):
 // calling it with the arrays' addresses (inputs, then outputs) and B runs rbdkit_run_raw, each array
 // B samples of its per-sample values (B = -1: one sample, no batch axis). The caller has checked the
@@ -191,26 +211,18 @@ struct RawCall {
   void operator()(const std::vector<uintptr_t>& ptrs, long B, bool device) const {
     const size_t n_in = slots.size(), n_out = outputs.size();
     if (ptrs.size() != n_in + n_out) throw nb::value_error("RawCall: expected one address per input and output");
+    if (n_in > size_t(ops::kMaxArgs) || n_out > size_t(ops::kMaxOutputs))
+      throw nb::value_error("RawCall: too many arrays");
     const long samples = B < 0 ? 1 : B;
     const void* in_p[ops::kMaxArgs];
     void* out_p[ops::kMaxOutputs];
     long in_c[ops::kMaxArgs], out_c[ops::kMaxOutputs];
-    if (n_in > size_t(ops::kMaxArgs) || n_out > size_t(ops::kMaxOutputs)) throw nb::value_error("RawCall: too many arrays");
-    for (size_t j = 0; j < n_in; ++j) in_p[j] = reinterpret_cast<const void*>(ptrs[j]), in_c[j] = samples * in_values[j];
+    for (size_t j = 0; j < n_in; ++j)
+      in_p[j] = reinterpret_cast<const void*>(ptrs[j]), in_c[j] = samples * in_values[j];
     for (size_t j = 0; j < n_out; ++j)
       out_p[j] = reinterpret_cast<void*>(ptrs[n_in + j]), out_c[j] = samples * out_values[j];
-    bool invalid = false;
-    std::string err;
-    {
-      nb::gil_scoped_release nogil;
-      err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p, in_c, n_in, outputs.data(),
-                           out_p, out_c, n_out, reals.data(), reals.size(), choices.data(), choices.size(),
-                           ee.data(), ee.size(), B, value_bytes, device, invalid);
-    }
-    if (!err.empty()) {
-      if (invalid) throw nb::value_error(err.c_str());
-      throw std::runtime_error(err);
-    }
+    run_raw_or_raise(handle, op, slots.data(), in_p, in_c, n_in, outputs.data(), out_p, out_c, n_out, reals, choices,
+                     ee, B, value_bytes, device);
   }
 };
 
@@ -237,19 +249,8 @@ void bind_jax(nb::module_& m) {
     std::vector<void*> out_p(outs.size());
     for (size_t j = 0; j < ins.size(); ++j) in_p[j] = reinterpret_cast<const void*>(ins[j]);
     for (size_t j = 0; j < outs.size(); ++j) out_p[j] = reinterpret_cast<void*>(outs[j]);
-    bool invalid = false;
-    std::string err;
-    {
-      nb::gil_scoped_release nogil;
-      err = rbdkit_run_raw(reinterpret_cast<rbd::Handle*>(handle), op, slots.data(), in_p.data(), counts.data(),
-                           in_p.size(), outputs.data(), out_p.data(), out_counts.data(), out_p.size(), reals.data(),
-                           reals.size(), choices.data(), choices.size(), ee.data(), ee.size(), B, value_bytes,
-                           device, invalid);
-    }
-    if (!err.empty()) {
-      if (invalid) throw nb::value_error(err.c_str());
-      throw std::runtime_error(err);
-    }
+    run_raw_or_raise(handle, op, slots.data(), in_p.data(), counts.data(), in_p.size(), outputs.data(), out_p.data(),
+                     out_counts.data(), out_p.size(), reals, choices, ee, B, value_bytes, device);
   }, "handle"_a, "op"_a, "slots"_a, "ins"_a, "counts"_a, "outputs"_a, "outs"_a, "out_counts"_a, "reals"_a,
      "choices"_a, "ee"_a, "B"_a, "value_bytes"_a, "device"_a = false);
 

@@ -94,10 +94,6 @@ std::string runtime_inertia(int i) {
          ", " + at(5) + ", " + at(6) + ", " + at(8) + ", " + at(7) + ", " + at(8) + ", " + at(9) + "}}}";
 }
 
-void replace_all(std::string& s, const std::string& from, const std::string& to) {
-  for (size_t k = s.find(from); k != std::string::npos; k = s.find(from, k + to.size())) s.replace(k, from.size(), to);
-}
-
 }  // namespace
 
 std::string generate_header(const Model& model, const std::string& name, const std::string& source,
@@ -145,8 +141,12 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "  static constexpr long step_scratch = " << integrator_gradient_scratch_values(nq, nv) << ";\n\n"
        "  // the bodies in topological order (rbd::BodyDesc): parent, joint type, q and v index, nq, nv,\n"
        "  // nv of the subtree, mimic (multiplier, offset), helical pitch, axis, X_parent_joint (R, p),\n"
-       "  // inertia in the body frame (m, m·c, I about the body origin)\n"
-       "  template <class S> RBD_HD static void bodies(rbd::BodyDesc<S>* b) {\n";
+    << (runtime_inertias
+            ? "  // inertia in the body frame from pi, 10 per body (m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz\n"
+              "  // about the body origin: rbdkit.Model.inertial_parameters' layout; no consistency check here)\n"
+              "  template <class S> RBD_HD static void bodies(rbd::BodyDesc<S>* b, const S* pi) {\n"
+            : "  // inertia in the body frame (m, m·c, I about the body origin)\n"
+              "  template <class S> RBD_HD static void bodies(rbd::BodyDesc<S>* b) {\n");
   for (int i = 0; i < nb; ++i) {
     const BodyDesc<double>& d = model.bodies[i];
     const std::string parent = d.parent < 0 ? "world" : model.body_names[d.parent];
@@ -161,40 +161,44 @@ std::string generate_header(const Model& model, const std::string& name, const s
       << (runtime_inertias ? runtime_inertia(i) : "{" + lit(d.I.m) + ", " + vec3(d.I.h) + ", " + mat3(d.I.I) + "}")
       << "};\n";
   }
+  // with runtime inertias, pi (10·nb) is every entry point's first parameter and each call's Call reads it
+  const std::string P = runtime_inertias ? "const S* pi, " : "";
+  const std::string C = runtime_inertias ? " c(pi);\n" : " c;\n";
   o << "  }\n\n"
        "  // tau (nv) = M qdd + C qd + g(q): RNEA (qdd may be null: zero)\n"
        "  template <class S>\n"
-       "  RBD_HD static void inverse_dynamics(const S* q, const S* qd, const S* qdd, S gravity, S* tau) {\n"
-       "    Call<S, false> c;\n"
+       "  RBD_HD static void inverse_dynamics(" << P << "const S* q, const S* qd, const S* qdd, S gravity, S* tau) {\n"
+       "    Call<S, false>" << C <<
        "    rbd::rnea(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, tau);\n"
        "  }\n\n"
        "  // qdd (nv): the articulated-body algorithm; false if a joint-space inertia is singular\n"
-       "  template <class S> RBD_HD static bool aba(const S* q, const S* qd, const S* tau, S gravity, S* qdd) {\n"
-       "    Call<S, bool(has_mimic)> c;\n"
+       "  template <class S>\n"
+       "  RBD_HD static bool aba(" << P << "const S* q, const S* qd, const S* tau, S gravity, S* qdd) {\n"
+       "    Call<S, bool(has_mimic)>" << C <<
        "    return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);\n"
        "  }\n\n"
        "  // M (nv x nv): the composite-rigid-body algorithm\n"
-       "  template <class S> RBD_HD static void crba(const S* q, S* M) {\n"
-       "    Call<S, true> c;\n"
+       "  template <class S> RBD_HD static void crba(" << P << "const S* q, S* M) {\n"
+       "    Call<S, true>" << C <<
        "    rbd::crba(c.m, c.w, q, M);\n"
        "  }\n\n"
        "  // M⁻¹ (nv x nv, dense); false if M is singular\n"
-       "  template <class S> RBD_HD static bool minv(const S* q, S* Minv) {\n"
-       "    Call<S, true> c;\n"
+       "  template <class S> RBD_HD static bool minv(" << P << "const S* q, S* Minv) {\n"
+       "    Call<S, true>" << C <<
        "    return rbd::minv(c.m, c.w, q, true, Minv);\n"
        "  }\n\n"
        "  // ∂tau/∂q, ∂tau/∂qd (nv x nv each) of inverse_dynamics (qdd may be null: zero)\n"
        "  template <class S>\n"
-       "  RBD_HD static void inverse_dynamics_gradient(const S* q, const S* qd, const S* qdd, S gravity, S* dtau_dq,\n"
-       "                                               S* dtau_dqd) {\n"
-       "    Call<S, true> c;\n"
+       "  RBD_HD static void inverse_dynamics_gradient(" << P << "const S* q, const S* qd, const S* qdd, S gravity,\n"
+       "                                               S* dtau_dq, S* dtau_dqd) {\n"
+       "    Call<S, true>" << C <<
        "    rbd::rnea_derivatives(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, dtau_dq, dtau_dqd);\n"
        "  }\n\n"
        "  // ∂qdd/∂q, ∂qdd/∂qd (nv x nv each) of qdd = aba(q, qd, tau); false if M is singular\n"
        "  template <class S>\n"
-       "  RBD_HD static bool forward_dynamics_gradient(const S* q, const S* qd, const S* tau, S gravity, S* dqdd_dq,\n"
-       "                                               S* dqdd_dqd) {\n"
-       "    Call<S, true> c;\n"
+       "  RBD_HD static bool forward_dynamics_gradient(" << P << "const S* q, const S* qd, const S* tau, S gravity,\n"
+       "                                               S* dqdd_dq, S* dqdd_dqd) {\n"
+       "    Call<S, true>" << C <<
        "    S qdd[nv];\n"
        "    return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, dqdd_dq,\n"
        "                                dqdd_dqd);\n"
@@ -203,9 +207,9 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "  // semi_implicit_euler, 2 midpoint, 3 rk4, 4 trapezoidal, 5 constant_acceleration) and its\n"
        "  // [A | B] = ∂x⁺/∂(x, u) (2 nv x 3 nv, tangent space; AB may be null); false if a step fails\n"
        "  template <class S>\n"
-       "  RBD_HD static bool integrator_gradient(const S* q, const S* qd, const S* u, S dt, int type, S* x_next,\n"
-       "                                         S* AB, S gravity = S(-9.81)) {\n"
-       "    Call<S, true> c;\n"
+       "  RBD_HD static bool integrator_gradient(" << P << "const S* q, const S* qd, const S* u, S dt, int type,\n"
+       "                                         S* x_next, S* AB, S gravity = S(-9.81)) {\n"
+       "    Call<S, true>" << C <<
        "    S scratch[step_scratch];\n"
        "    return rbd::integrator_gradient(c.m, c.w, type, q, qd, u, static_cast<const S*>(nullptr), dt, gravity,\n"
        "                                    x_next, x_next + nq, AB, scratch);\n"
@@ -218,25 +222,16 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "    alignas(16) unsigned char buffer[workspace_bytes<S>(Full)];\n"
        "    rbd::ModelView<S> m;\n"
        "    rbd::Workspace<S> w;\n"
-       "    RBD_HD Call() : m{nb, nq, nv, has_mimic, body} {\n"
-       "      bodies(body);\n"
-       "      w = rbd::carve_workspace<S>(buffer, nb, nv, Full ? rbd::kFullWorkspace : rbd::kLinearWorkspace);\n"
+    << (runtime_inertias ? "    RBD_HD explicit Call(const S* pi) : m{nb, nq, nv, has_mimic, body} {\n"
+                           "      bodies(body, pi);\n"
+                         : "    RBD_HD Call() : m{nb, nq, nv, has_mimic, body} {\n"
+                           "      bodies(body);\n")
+    << "      w = rbd::carve_workspace<S>(buffer, nb, nv, Full ? rbd::kFullWorkspace : rbd::kLinearWorkspace);\n"
        "    }\n"
        "  };\n"
        "};\n\n"
        "}  // namespace rbdkit_generated\n";
-  if (!runtime_inertias) return o.str();
-  // the inertias as an argument: every entry point takes pi (10·nb) first, and its Call reads it
-  std::string text = o.str();
-  replace_all(text, "(const S* q, ", "(const S* pi, const S* q, ");
-  replace_all(text, "> c;\n", "> c(pi);\n");
-  replace_all(text, "bodies(rbd::BodyDesc<S>* b) {", "bodies(rbd::BodyDesc<S>* b, const S* pi) {");
-  replace_all(text, "RBD_HD Call() :", "RBD_HD explicit Call(const S* pi) :");
-  replace_all(text, "bodies(body);", "bodies(body, pi);");
-  replace_all(text, "// inertia in the body frame (m, m·c, I about the body origin)\n",
-              "// inertia in the body frame from pi, 10 per body (m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz about the\n"
-              "  // body origin: rbdkit.Model.inertial_parameters' layout; no consistency check here)\n");
-  return text;
+  return o.str();
 }
 
 }  // namespace rbd

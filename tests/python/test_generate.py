@@ -88,6 +88,20 @@ int main() {{
 """
 
 
+def build(cxx, src, exe, flags=("-O1", "-Wall", "-Wextra", "-Werror")):
+    """compile the program src (next to its generated header) as C++17 with only rbdkit's include folder"""
+    r = subprocess.run([cxx, "-std=c++17", *flags, "-I", rbdkit.include_dir(), "-I", str(src.parent), str(src), "-o",
+                        str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-4000:]
+
+
+def run(*command):
+    """the stdout of a program that must succeed"""
+    r = subprocess.run([str(c) for c in command], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-4000:]
+    return r.stdout
+
+
 def run_generated(model, name, tmp_path, cxx, q, qd, qdd, u):
     """{label: values} printed by the generated header's program (PROGRAM) compiled with cxx"""
     rbdkit.generate(model, name, tmp_path / f"{name}.hpp", source="test")
@@ -95,12 +109,8 @@ def run_generated(model, name, tmp_path, cxx, q, qd, qdd, u):
     src = tmp_path / f"{name}_main.cpp"
     src.write_text(PROGRAM.format(name=name, arrays=arrays))
     exe = tmp_path / f"{name}_{os.path.basename(cxx)}"
-    r = subprocess.run([cxx, "-std=c++17", "-O1", "-Wall", "-Wextra", "-Werror", "-I", rbdkit.include_dir(), "-I",
-                        str(tmp_path), str(src), "-o", str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-4000:]
-    r = subprocess.run([str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    return {line.split()[0]: np.array([float(v) for v in line.split()[1:]]) for line in r.stdout.splitlines()}
+    build(cxx, src, exe)
+    return {line.split()[0]: np.array([float(v) for v in line.split()[1:]]) for line in run(exe).splitlines()}
 
 
 def close(got, want, tol=1e-12):
@@ -148,9 +158,7 @@ def test_generated_code_reads_no_uninitialised_memory(name, floating, tmp_path):
     arrays = c_array("q", q) + c_array("qd", qd) + c_array("qdd_in", qdd) + c_array("u", u)
     (tmp_path / "main.cpp").write_text(PROGRAM.format(name="Robot", arrays=arrays))
     exe = tmp_path / "prog"
-    r = subprocess.run([compiler("g++"), "-std=c++17", "-O0", "-g", "-I", rbdkit.include_dir(), "-I", str(tmp_path),
-                        str(tmp_path / "main.cpp"), "-o", str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-4000:]
+    build(compiler("g++"), tmp_path / "main.cpp", exe, flags=("-O0", "-g"))
     r = subprocess.run([valgrind, "-q", "--error-exitcode=9", "--track-origins=yes", str(exe)], capture_output=True,
                        text=True)
     assert r.returncode == 0 and "uninitialised" not in r.stderr, r.stderr[-4000:]
@@ -187,12 +195,8 @@ def test_generated_header_with_runtime_inertias(name, floating, tmp_path):
     arrays = c_array("pi", pi2) + c_array("q", q) + c_array("qd", qd) + c_array("qdd_in", qdd)
     (tmp_path / "main.cpp").write_text(RUNTIME.format(arrays=arrays))
     exe = tmp_path / "prog"
-    r = subprocess.run([compiler("g++"), "-std=c++17", "-O1", "-Wall", "-Wextra", "-Werror", "-I", rbdkit.include_dir(),
-                        "-I", str(tmp_path), str(tmp_path / "main.cpp"), "-o", str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-4000:]
-    r = subprocess.run([str(exe)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    tau, AB = (np.array([float(v) for v in line.split()]) for line in r.stdout.splitlines())
+    build(compiler("g++"), tmp_path / "main.cpp", exe)
+    tau, AB = (np.array([float(v) for v in line.split()]) for line in run(exe).splitlines())
     h2 = rbdkit.Handle(model.with_inertial_parameters(pi2), threads=1)
     assert close(tau, h2.inverse_dynamics(q, qd, qdd))
     assert close(AB, h2.integrator_gradient(q, qd, qdd, 0.01, "rk4"))
