@@ -19,6 +19,12 @@
 // --benchmark_out=FILE --benchmark_out_format=json, ...) and
 //   --robots_dir=DIR   the URDF folder (default: rbdkit's robots/)
 //   --check_only       run the agreement check and exit
+//   --count_calls=N    no timing: run every (library, operation, robot) that
+//                      --benchmark_filter selects N times, each loop between
+//                      callgrind client requests, so that
+//                      `valgrind --tool=callgrind --collect-atstart=no` writes
+//                      one dump per loop named <library>/<operation>/<robot>
+//                      (bench/callgrind.sh turns them into instructions per call)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -33,6 +39,11 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <regex>
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#define RBDKIT_HAVE_CALLGRIND 1
+#endif
 #include <rbdkit/algorithms/aba_derivatives.hpp>
 #include <rbdkit/algorithms/fdsva_so.hpp>
 #include <rbdkit/batch/dynamics.hpp>
@@ -362,11 +373,43 @@ void register_benchmarks(std::vector<std::unique_ptr<Robot>>& robots, const std:
   }
 }
 
+// ---- instruction counts: each selected loop of n calls collected by callgrind
+// alone and dumped under its benchmark name (outside valgrind the requests do nothing)
+void count_calls(std::vector<std::unique_ptr<Robot>>& robots, const std::vector<Operation>& ops, long n,
+                 const std::string& filter) {
+#ifdef RBDKIT_HAVE_CALLGRIND
+  const std::regex select(filter.empty() ? std::string(".*") : filter);
+  auto loop = [&](const std::string& name, Robot& r, void (*call)(Robot&)) {
+    if (!std::regex_search(name, select)) return;
+    call(r);  // warm: first-touch work stays out of the count
+    CALLGRIND_TOGGLE_COLLECT;
+    for (long k = 0; k < n; ++k) {
+      call(r);
+      benchmark::ClobberMemory();
+    }
+    CALLGRIND_TOGGLE_COLLECT;
+    CALLGRIND_DUMP_STATS_AT(name.c_str());
+    std::fprintf(stderr, "counted %s\n", name.c_str());
+  };
+  for (const Operation& op : ops)
+    for (auto& rp : robots) {
+      if (op.rbdkit) loop("rbdkit/" + op.name + "/" + rp->name, *rp, op.rbdkit);
+      if (op.pinocchio) loop("pinocchio/" + op.name + "/" + rp->name, *rp, op.pinocchio);
+    }
+#else
+  (void)robots, (void)ops, (void)n, (void)filter;
+  std::fprintf(stderr, "bench: built without <valgrind/callgrind.h>; --count_calls needs it\n");
+  std::exit(1);
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string dir = RBDKIT_ROBOTS_DIR;
   bool check_only = false;
+  long count = 0;
+  std::string filter;
   // our own flags first, the rest to Google Benchmark
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
@@ -374,8 +417,12 @@ int main(int argc, char** argv) {
       dir = argv[i] + 13;
     else if (std::strcmp(argv[i], "--check_only") == 0)
       check_only = true;
-    else
+    else if (std::strncmp(argv[i], "--count_calls=", 14) == 0)
+      count = std::atol(argv[i] + 14);
+    else {
+      if (std::strncmp(argv[i], "--benchmark_filter=", 19) == 0) filter = argv[i] + 19;
       rest.push_back(argv[i]);
+    }
   }
   int n = static_cast<int>(rest.size());
   benchmark::Initialize(&n, rest.data());
@@ -397,6 +444,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (check_only) return 0;
+  if (count > 0) {
+    count_calls(robots, ops, count, filter);
+    return 0;
+  }
 
   register_benchmarks(robots, ops);
   benchmark::RunSpecifiedBenchmarks();

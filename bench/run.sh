@@ -7,7 +7,8 @@
 #   (no table: `rbdkit bench` reports itself),
 #   MIN_TIME (seconds per repetition, 0.2), PINOCCHIO_INLINE=1 (compile
 #   Pinocchio's algorithms here instead of calling its shared library; builds
-#   in build/bench-inline).
+#   in build/bench-inline), COUNT_CALLS=N (no timing: instructions per call
+#   under callgrind, N calls per benchmark; combine with --benchmark_filter).
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 # what the benchmark needs (Google Benchmark, the `pin` wheel): installed if missing
@@ -54,12 +55,24 @@ fi
 # links the prefix's tinyxml2, the one Pinocchio's URDF parser uses)
 echo "bench: configuring $BUILD"
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$PREFIXES" \
-  -DRBDKIT_BUILD_BENCH=ON -DRBDKIT_BUILD_TESTS=OFF -DRBDKIT_CUDA_CHECK=OFF -DRBDKIT_BUILD_PYTHON=OFF \
+  -DRBDKIT_BUILD_BENCH=ON -DRBDKIT_BUILD_TESTS=OFF -DRBDKIT_CUDA_CHECK=OFF -DRBDKIT_CUDA=OFF -DRBDKIT_BUILD_PYTHON=OFF \
   -DRBDKIT_BENCH_PINOCCHIO_PREFIX="$PREFIX" -DRBDKIT_BENCH_PINOCCHIO_INLINE=$INLINE >"$BUILD/configure.log" ||
   { cat "$BUILD/configure.log"; exit 1; }
 t0=$(date +%s)
 cmake --build "$BUILD" --target rbdkit_bench -j "$JOBS"
 echo "bench: build took $(( $(date +%s) - t0 )) s (-j $JOBS)"
+
+# ---- or count instructions: one callgrind dump per selected benchmark
+if [[ -n "${COUNT_CALLS:-}" ]]; then
+  CG="$BUILD/callgrind"
+  rm -rf "$CG" && mkdir -p "$CG"
+  echo "bench: counting instructions under callgrind ($COUNT_CALLS calls per benchmark) into $CG"
+  valgrind --tool=callgrind --collect-atstart=no --callgrind-out-file="$CG/callgrind.out" \
+    "$BUILD/bench/rbdkit_bench" --count_calls="$COUNT_CALLS" "$@" 2>"$CG/valgrind.log" ||
+    { tail -20 "$CG/valgrind.log"; exit 1; }
+  "$PY" "$ROOT/bench/callgrind_report.py" "$CG" "$COUNT_CALLS" ${CALLGRIND_MARKDOWN:+--markdown}
+  exit 0
+fi
 
 # ---- run: interleaved repetitions, all of them kept in the JSON, the
 # minimum reported (the machine is shared: the minimum is the least disturbed)

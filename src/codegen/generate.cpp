@@ -140,7 +140,8 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "  // values of integrator_gradient's scratch (rbd::integrator_gradient_scratch_values)\n"
        "  static constexpr long step_scratch = " << integrator_gradient_scratch_values(nq, nv) << ";\n\n"
        "  // the bodies in topological order (rbd::BodyDesc): parent, joint type, q and v index, nq, nv,\n"
-       "  // nv of the subtree, mimic (multiplier, offset), helical pitch, axis, X_parent_joint (R, p),\n"
+       "  // nv of the subtree, mimic (multiplier, offset), helical pitch, axis (and k + 1 when it is ±e_k),\n"
+       "  // X_parent_joint (R, p),\n"
     << (runtime_inertias
             ? "  // inertia in the body frame from pi, 10 per body (m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz\n"
               "  // about the body origin: rbdkit.Model.inertial_parameters' layout; no consistency check here)\n"
@@ -155,7 +156,7 @@ std::string generate_header(const Model& model, const std::string& name, const s
       << "    b[" << i << "] = {" << d.parent << ", " << joint_type_name(d.type) << ", " << d.q_idx << ", " << d.v_idx
       << ", " << d.nq << ", " << d.nv << ", " << d.nv_subtree << ", " << d.mimic << ", " << lit(d.mult) << ", "
       << lit(d.offset) << ", " << lit(d.pitch) << ",\n"
-      << "            " << vec3(d.axis) << ",\n"
+      << "            " << vec3(d.axis) << ", " << d.axis_k << ",\n"
       << "            {" << mat3(d.X_tree.R) << ", " << vec3(d.X_tree.p) << "},\n"
       << "            "
       << (runtime_inertias ? runtime_inertia(i) : "{" + lit(d.I.m) + ", " + vec3(d.I.h) + ", " + mat3(d.I.I) + "}")

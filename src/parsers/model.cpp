@@ -20,6 +20,13 @@ bool Model::has_mimic() const {
 }
 
 void Model::finalize() {
+  // 1-DoF axes along a frame axis: the kinematics then turn two columns instead of multiplying 3x3s
+  for (auto& b : bodies) {
+    const double a[3] = {b.axis.x, b.axis.y, b.axis.z};
+    b.axis_k = 0;
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(a[k]) == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) b.axis_k = k + 1;
+  }
   // velocity coordinates in each subtree (children come after parents)
   for (auto& b : bodies) b.nv_subtree = b.mimic ? 0 : b.nv;
   for (int i = nb() - 1; i >= 0; --i)

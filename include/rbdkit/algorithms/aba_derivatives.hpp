@@ -69,8 +69,10 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
   // qdd by ABA, as the integrators compute it (a step and its gradient give the same x⁺, bit for bit)
   if (!aba(m, w, q, qd, tau, fext, gravity, qdd)) return false;
-  rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd);
+  // M⁻¹ first: its backward pass leaves the world placements and body inertias
+  // that the derivative passes then reuse (the mimic path's CRBA does not)
   if (!prepare_minv(m, w, q)) return false;
+  rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   apply_neg_minv(m, w, dqdd_dq, m.nv);
   apply_neg_minv(m, w, dqdd_dqd, m.nv);
   return true;

@@ -26,25 +26,35 @@ template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Works
 }
 
 // backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors,
-// Ic_λ += Ic_i. writes M (nv x nv, row-major), w.Ic (subtree sums)
+// Ic_λ += Ic_i. writes M (nv x nv, row-major), w.Ic (subtree sums).
+// Without mimic joints each (ancestor, descendant) pair of DoFs is met once,
+// so both triangles are assigned; a mimic body adds into its target's columns.
 template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
   const int nv = m.nv;
+  const bool add = m.has_mimic;
   for (int k = 0; k < nv * nv; ++k) M[k] = S(0);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
+    const Motion<S>* si = w.S_world + 6 * i;
     Force<S> F[6];
-    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * w.S_world[6 * i + k];
+    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * si[k];
     // diagonal block
     for (int k = 0; k < bi.nv; ++k)
-      for (int l = 0; l < bi.nv; ++l) M[(bi.v_idx + l) * nv + bi.v_idx + k] += dot(w.S_world[6 * i + l], F[k]);
+      for (int l = 0; l < bi.nv; ++l) {
+        S& x = M[(bi.v_idx + l) * nv + bi.v_idx + k];
+        x = add ? x + dot(si[l], F[k]) : dot(si[l], F[k]);
+      }
     // off-diagonal blocks with every ancestor (and their transposes)
     for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
       const BodyDesc<S>& bj = m.body[j];
+      const Motion<S>* sj = w.S_world + 6 * j;
       for (int k = 0; k < bi.nv; ++k)
         for (int l = 0; l < bj.nv; ++l) {
-          const S x = dot(w.S_world[6 * j + l], F[k]);
-          M[(bj.v_idx + l) * nv + bi.v_idx + k] += x;
-          M[(bi.v_idx + k) * nv + bj.v_idx + l] += x;
+          const S x = dot(sj[l], F[k]);
+          S& upper = M[(bj.v_idx + l) * nv + bi.v_idx + k];
+          S& lower = M[(bi.v_idx + k) * nv + bj.v_idx + l];
+          if (add) upper += x, lower += x;
+          else upper = x, lower = x;
         }
     }
     if (bi.parent >= 0) w.Ic[bi.parent] += w.Ic[i];

@@ -63,7 +63,7 @@ template <typename S> RBD_HD Motion<S> world_velocity(const Workspace<S>& w, int
 
 // the world-frame column of DoF a of body k: X_world_k · S_k[:, a]
 template <typename S> RBD_HD Motion<S> world_subspace_col(const ModelView<S>& m, const Workspace<S>& w, int k, int a) {
-  return w.X_world[k].act(joint_subspace_col(m.body[k], a));
+  return joint_subspace_col_in(m.body[k], w.X_world[k], a);
 }
 
 // a world-frame motion s re-expressed in reference frame rf for the frame at X_world_F

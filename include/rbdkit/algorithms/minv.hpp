@@ -25,15 +25,17 @@
 namespace rbd {
 
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
-// writes w.X_parent, w.IA, w.U (world frame), w.Dinv, w.Sw (world frame), w.F
-// (nv x 6), Minv (upper part). false if some D is not positive definite.
+// writes w.X_parent, w.X_world, w.Ic (the world body inertias), w.IA, w.U (world
+// frame), w.Dinv, w.S_world, w.F (nv x 6), Minv (upper part). false if some D
+// is not positive definite.
 template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
   const int nv = m.nv;
   // body placements X_0i, articulated inertias start as the body inertias (world frame)
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     world_placement(m, w, q, i, false);
-    w.IA[i] = Mat6<S>::from_inertia(transform_inertia(w.X_world[i], b.I));
+    w.Ic[i] = transform_inertia(w.X_world[i], b.I);
+    w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
   for (int k = 0; k < 6 * nv; ++k) w.F[k] = S(0);
@@ -44,7 +46,7 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     Motion<S>* Sw = w.S_world + 6 * i;
     S* Dinv = w.Dinv + 36 * i;
     // U = IA S, D⁻¹, and IA_λ += IA - U D⁻¹ Uᵀ
-    for (int k = 0; k < ni; ++k) Sw[k] = w.X_world[i].act(joint_subspace_col(b, k));
+    for (int k = 0; k < ni; ++k) Sw[k] = joint_subspace_col_in(b, w.X_world[i], k);
     if (!joint_inertia(ni, Sw, w.IA[i], U, Dinv)) return false;
     if (b.parent >= 0) w.IA[b.parent] += articulated_residual(ni, w.IA[i], U, Dinv);
     // own block: D⁻¹

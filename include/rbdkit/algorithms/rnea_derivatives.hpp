@@ -54,20 +54,22 @@ template <typename S> RBD_HD Mat6<S> inertia_variation(const Inertia<S>& I, cons
 
 // forward pass: world placements, subspace columns, velocities, accelerations,
 // column sensitivities, and per-body inertia, momentum, force and B.
-//   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null)
+//   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null); placed:
+//   w.X_world, w.S_world and w.Ic (the world body inertias) already hold q's
+//   placement (minv_backward_pass leaves them so), which is then not redone
 //   writes w.X_parent, w.X_world, w.S_world, w.v, w.a (world, gravity included), w.dVdq,
 //   w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B
 template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
-                                          const S* qdd, const S* fext, S gravity) {
+                                          const S* qdd, const S* fext, S gravity, bool placed = false) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // placement, world-frame subspace, velocity, acceleration, column sensitivities
-    world_placement(m, w, q, i);
+    if (!placed) world_placement(m, w, q, i);
     world_motion(m, w, i, qd, qdd, gravity, true, true);
     // body inertia, momentum and net force in the world frame
-    const Inertia<S> oI = transform_inertia(w.X_world[i], b.I);
-    w.Ic[i] = oI;
+    if (!placed) w.Ic[i] = transform_inertia(w.X_world[i], b.I);
+    const Inertia<S>& oI = w.Ic[i];
     w.h[i] = oI * w.v[i];
     w.f[i] = oI * w.a[i] + cross(w.v[i], w.h[i]);
     if (fext) w.f[i] -= w.X_world[i].act(load_force(fext + 6 * i));
@@ -134,10 +136,12 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
 
 // ∂tau/∂q and ∂tau/∂qd (nv x nv each, row-major) of tau = ID(q, qd, qdd, f_ext);
 // qdd and fext may be null (zero). tau (nv) is written too when not null.
+// placed: as rnea_derivatives_forward_pass's
 template <typename S>
 RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
-                             const S* fext, S gravity, S* dtau_dq, S* dtau_dqd, S* tau = nullptr) {
-  rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity);
+                             const S* fext, S gravity, S* dtau_dq, S* dtau_dqd, S* tau = nullptr,
+                             bool placed = false) {
+  rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed);
   rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
 }
 

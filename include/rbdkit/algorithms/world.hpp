@@ -16,7 +16,7 @@ RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   w.X_parent[i] = body_transform(b, q);
   w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
   if (with_subspace)
-    for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = w.X_world[i].act(joint_subspace_col(b, k));
+    for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
 }
 
 // world-frame velocity v_i = v_λ + s qd and, when with_acc, acceleration

@@ -32,6 +32,7 @@ template <typename S> struct BodyDesc {
   S mult, offset;     // mimic multiplier and offset (1, 0 otherwise)
   S pitch;            // helical pitch, metres per radian
   Vec3<S> axis;       // unit joint axis in the joint frame (1-DoF joints)
+  int axis_k;         // k + 1 when axis = ±e_k, a frame axis (kinematics without products by its zeros); 0 otherwise
   Transform<S> X_tree;  // X_parent_joint: joint frame placed in the parent body frame
   Inertia<S> I;       // spatial inertia in the body frame (merged fixed links included)
 };
@@ -39,7 +40,7 @@ template <typename S> struct BodyDesc {
 // a body description in scalar T (a dual number, float): the constants converted, the structure kept
 template <typename T, typename S> RBD_HD void body_as(const BodyDesc<S>& b, BodyDesc<T>& o) {
   o.parent = b.parent, o.type = b.type, o.q_idx = b.q_idx, o.v_idx = b.v_idx, o.nq = b.nq, o.nv = b.nv;
-  o.nv_subtree = b.nv_subtree, o.mimic = b.mimic;
+  o.nv_subtree = b.nv_subtree, o.mimic = b.mimic, o.axis_k = b.axis_k;
   o.mult = T(b.mult), o.offset = T(b.offset), o.pitch = T(b.pitch);
   o.axis = {T(b.axis.x), T(b.axis.y), T(b.axis.z)};
   for (int k = 0; k < 9; ++k) o.X_tree.R.m[k] = T(b.X_tree.R.m[k]), o.I.I.m[k] = T(b.I.I.m[k]);

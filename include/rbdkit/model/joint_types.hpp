@@ -308,17 +308,76 @@ template <typename S> RBD_HD Transform<S> joint_transform(const BodyDesc<S>& b, 
   return visit_joint(b.type, [&](auto J) { return J.transform(b, q); });
 }
 
-// X_parent_body = X_tree · X_J(q) (a revolute X_J is a pure rotation); one
-// product after the dispatch keeps the hot forward passes compact
+// R · rot(e_K, t) for c = cos t, s = sin t: columns i, j = K+1, K+2 (mod 3)
+// of R turned in their plane, column K kept (K a constant: registers on a GPU)
+template <int K, typename S> RBD_HD Mat3<S> turn_columns(const Mat3<S>& R, const S& c, const S& s) {
+  constexpr int i = (K + 1) % 3, j = (K + 2) % 3;
+  Mat3<S> o = R;
+  for (int r = 0; r < 3; ++r) {
+    o(r, i) = c * R(r, i) + s * R(r, j);
+    o(r, j) = c * R(r, j) - s * R(r, i);
+  }
+  return o;
+}
+
+// R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1)
+template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
+  const S c = scos(t), s = ssin(t);
+  switch (b.axis_k) {
+    case 1: return turn_columns<0>(R, c, b.axis.x * s);
+    case 2: return turn_columns<1>(R, c, b.axis.y * s);
+    default: return turn_columns<2>(R, c, b.axis.z * s);
+  }
+}
+
+// R · axis for a 1-DoF body: a column of R when the axis is a frame axis
+template <typename S> RBD_HD Vec3<S> rotate_axis(const BodyDesc<S>& b, const Mat3<S>& R) {
+  switch (b.axis_k) {
+    case 1: return b.axis.x * Vec3<S>{R(0, 0), R(1, 0), R(2, 0)};
+    case 2: return b.axis.y * Vec3<S>{R(0, 1), R(1, 1), R(2, 1)};
+    case 3: return b.axis.z * Vec3<S>{R(0, 2), R(1, 2), R(2, 2)};
+    default: return R * b.axis;
+  }
+}
+
+// X_parent_body = X_tree · X_J(q), with what X_J leaves out left out: a
+// revolute X_J is a pure rotation (two turned columns about a frame axis), a
+// prismatic one a pure translation
 template <typename S> RBD_HD Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
-  const Transform<S> XJ = joint_transform(b, q);
-  if (b.type == kRevolute) return {b.X_tree.R * XJ.R, b.X_tree.p};
-  return b.X_tree * XJ;
+  if (b.type == kRevolute) {
+    if (b.axis_k) return {rotate_about_frame_axis(b, b.X_tree.R, joint_angle(b, q)), b.X_tree.p};
+    return {b.X_tree.R * axis_angle(b.axis, joint_angle(b, q)), b.X_tree.p};
+  }
+  if (b.type == kPrismatic) return {b.X_tree.R, b.X_tree.p + joint_angle(b, q) * rotate_axis(b, b.X_tree.R)};
+  return b.X_tree * joint_transform(b, q);
 }
 
 // column k of the motion subspace S (mimic multiplier included)
 template <typename S> RBD_HD Motion<S> joint_subspace_col(const BodyDesc<S>& b, int k) {
   return visit_joint(b.type, [&](auto J) { return J.subspace_col(b, k); });
+}
+
+// X · (column k of S): a subspace column in the frame X maps the body frame
+// to (the world for X_0i), without the products by S's zero entries
+template <typename S> RBD_HD Motion<S> joint_subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int k) {
+  switch (b.type) {
+    case kRevolute: {
+      const Vec3<S> w = b.mult * rotate_axis(b, X.R);
+      return {cross(X.p, w), w};
+    }
+    case kPrismatic: return {b.mult * rotate_axis(b, X.R), Vec3<S>::zero()};
+    case kSpherical: {
+      const Vec3<S> w = {X.R(0, k), X.R(1, k), X.R(2, k)};
+      return {cross(X.p, w), w};
+    }
+    case kFree: {
+      const int c = k < 3 ? k : k - 3;
+      const Vec3<S> e = {X.R(0, c), X.R(1, c), X.R(2, c)};
+      if (k < 3) return {e, Vec3<S>::zero()};
+      return {cross(X.p, e), e};
+    }
+    default: return X.act(joint_subspace_col(b, k));  // helical
+  }
 }
 
 // S·x for the joint's nv coordinates x

@@ -258,6 +258,27 @@ template <typename S> RBD_HD Mat6<S> motion_matrix(const Transform<S>& X) {
   return A;
 }
 
+// A [p]x: row r is A_r × p (the products by the skew matrix's zeros left out)
+template <typename S> RBD_HD Mat3<S> mul_skew(const Mat3<S>& A, const Vec3<S>& p) {
+  Mat3<S> C;
+  for (int r = 0; r < 3; ++r) {
+    C(r, 0) = A(r, 1) * p.z - A(r, 2) * p.y;
+    C(r, 1) = A(r, 2) * p.x - A(r, 0) * p.z;
+    C(r, 2) = A(r, 0) * p.y - A(r, 1) * p.x;
+  }
+  return C;
+}
+// [p]x A: column c is p × A_c
+template <typename S> RBD_HD Mat3<S> skew_mul(const Vec3<S>& p, const Mat3<S>& A) {
+  Mat3<S> C;
+  for (int c = 0; c < 3; ++c) {
+    C(0, c) = p.y * A(2, c) - p.z * A(1, c);
+    C(1, c) = p.z * A(0, c) - p.x * A(2, c);
+    C(2, c) = p.x * A(1, c) - p.y * A(0, c);
+  }
+  return C;
+}
+
 // articulated inertia of frame b expressed in frame a: X* Ib X⁻¹ for
 // X = X_a_b. With Ib = [[A, B], [Bᵀ, C]] (linear/angular blocks), rotate each
 // block (A' = R A Rᵀ, ...), then shift by p with P = [p]x:
@@ -275,10 +296,10 @@ template <typename S> RBD_HD Mat6<S> transform_mat6(const Transform<S>& X_a_b, c
   A = R * A * Rt;
   B = R * B * Rt;
   C = R * C * Rt;
-  const Mat3<S> P = skew(X_a_b.p);
-  const Mat3<S> AP = A * P, PB = P * B;
+  const Vec3<S>& p = X_a_b.p;
+  const Mat3<S> AP = mul_skew(A, p), PB = skew_mul(p, B);
   const Mat3<S> Ba = B - AP;
-  const Mat3<S> Ca = C - P * AP + PB + transpose(PB);  // -B'ᵀP = (P B')ᵀ
+  const Mat3<S> Ca = C - skew_mul(p, AP) + PB + transpose(PB);  // -B'ᵀP = (P B')ᵀ
   Mat6<S> out;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) {
