@@ -122,15 +122,29 @@ def on_device_of(a, ref):
 
 
 def call_keywords(op, names, args, kwargs):
-    """a call's positional and keyword arguments as keywords, by the operation's argument names"""
+    """a call's positional and keyword arguments as keywords, by the operation's argument names
+    (GRAVITY, the reference implementation's spelling, is gravity's alias)"""
     if len(args) > len(names):
         raise TypeError(f"{op}() takes at most {len(names)} arguments ({len(args)} given)")
     kw = dict(zip(names, args))
     for name, v in kwargs.items():
-        if name in kw:
+        if name == "GRAVITY" and "gravity" in names:
+            name = "gravity"
+            if name in kw:
+                raise TypeError(f"{op}() got both gravity and GRAVITY (its alias); pass one")
+        elif name in kw:
             raise TypeError(f"{op}() got multiple values for argument '{name}'")
         kw[name] = v
     return kw
+
+
+def gravity_alias(op, gravity, GRAVITY, default=-9.81):
+    """gravity from a method that takes both spellings (None: not given)"""
+    if GRAVITY is None:
+        return default if gravity is None else gravity
+    if gravity is not None:
+        raise TypeError(f"{op}() got both gravity and GRAVITY (its alias); pass one")
+    return GRAVITY
 
 
 # ε_ijk: [w]x = -ε·w, i.e. ([w]x)_ij = -ε_ijk w_k

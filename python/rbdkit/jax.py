@@ -108,7 +108,7 @@ except ImportError as e:  # an optional dependency
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, apply_jacobians, call_keywords, configuration_jacobians,
-                          elementwise_arguments, elementwise_jvp, gauss_newton_value_vjp, half_q,
+                          elementwise_arguments, elementwise_jvp, gauss_newton_value_vjp, gravity_alias, half_q,
                           inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
                           quaternion_joints, regressor_jacobians, rotation, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
@@ -285,13 +285,14 @@ class Handle:
         return _custom_call(self, op, args, kwargs, _RULES.get(op, _no_derivative))
 
     # ---- the inertial parameters as an array
-    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=-9.81):
+    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=None, *, GRAVITY=None):
         """τ = Y(q, qd, qdd) π (..., nv): the inverse dynamics with the inertial parameters pi (..., 10·nb,
         Model.inertial_parameters' layout) as an array, differentiable in pi (∂τ/∂π = Y) and in q, qd,
         qdd (the regressor's rule); no f_ext. At pi = model.inertial_parameters() it is
         inverse_dynamics(q, qd, qdd)[0] (module doc, "Inertial parameters")."""
-        return inverse_dynamics_with_parameters(jnp, self, q, qd, qdd, jnp.asarray(pi), gravity,
-                                                self.inverse_dynamics_regressor)
+        return inverse_dynamics_with_parameters(jnp, self, q, qd, qdd, jnp.asarray(pi),
+                                                gravity_alias("inverse_dynamics_with_parameters", gravity,
+                                                              GRAVITY), self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (module doc)
     # (output_convention: None for the handle's; "mujoco": MuJoCo's coordinates and mj_integratePos)

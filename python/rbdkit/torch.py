@@ -56,7 +56,8 @@ except ImportError as e:  # an optional dependency
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
                           add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments,
-                          elementwise_vjp, gauss_newton_value_vjp, half_q, inverse_dynamics_with_parameters,
+                          elementwise_vjp, gauss_newton_value_vjp, gravity_alias, half_q,
+                          inverse_dynamics_with_parameters,
                           mujoco_coordinates, mujoco_maps, one_dof_coordinates, quaternion_joints, regressor_jacobians,
                           rotation, transpose_jacobians, with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
@@ -381,14 +382,15 @@ class Handle:
             self._plans[tuple(key)] = plan
         return plan
 
-    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=-9.81):
+    def inverse_dynamics_with_parameters(self, q, qd, qdd, pi, gravity=None, *, GRAVITY=None):
         """τ = Y(q, qd, qdd) π (..., nv): the inverse dynamics with the inertial parameters pi (..., 10·nb,
         Model.inertial_parameters' layout) as a tensor, differentiable in pi and in q, qd, qdd (rbdkit.jax's
         module doc, "Inertial parameters"); no f_ext"""
         device = q.device if isinstance(q, torch.Tensor) else None
         return inverse_dynamics_with_parameters(torch, self, q, qd, qdd, torch.as_tensor(pi, dtype=self.dtype,
                                                                                          device=device),
-                                                gravity, self.inverse_dynamics_regressor)
+                                                gravity_alias("inverse_dynamics_with_parameters", gravity,
+                                                              GRAVITY), self.inverse_dynamics_regressor)
 
     # ---- the coordinates and the tangent space (rbdkit.jax's module doc)
     def tangent_gradient(self, q, grad_q, output_convention=None):

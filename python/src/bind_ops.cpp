@@ -436,6 +436,13 @@ bool bind_arguments(const OpHandle& h, const ops::OpSpec& op, PyObject* const* n
         k = 0;
         while (k < op.n_args && PyUnicode_Compare(names[k], key) != 0) ++k;
       }
+      // GRAVITY: the reference implementation's spelling of gravity
+      bool alias = false;
+      if (k == op.n_args && PyUnicode_CompareWithASCIIString(key, "GRAVITY") == 0) {
+        k = 0;
+        while (k < op.n_args && std::strcmp(op.args[k].name, "gravity") != 0) ++k;
+        alias = true;
+      }
       if (k == op.n_args) {
         PyObject* r = PyObject_Repr(key);
         std::string s = text_of(r);
@@ -444,6 +451,12 @@ bool bind_arguments(const OpHandle& h, const ops::OpSpec& op, PyObject* const* n
         return false;
       }
       if (slot[k]) {
+        if (alias || std::strcmp(op.args[k].name, "gravity") == 0)
+          for (Py_ssize_t i = 0; i < nkw; ++i)
+            if (i != j && PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, i), alias ? "gravity" : "GRAVITY") == 0) {
+              fail(PyExc_TypeError, std::string(op.name) + "() got both gravity and GRAVITY (its alias); pass one");
+              return false;
+            }
         fail(PyExc_TypeError, std::string(op.name) + "() got multiple values for argument '" + op.args[k].name + "'");
         return false;
       }

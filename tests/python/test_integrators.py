@@ -32,9 +32,12 @@ def state(model, seed=0):
 
 def reference_step(ref, q, v, u, dt, scheme, fext=None):
     """the step in Pinocchio's coordinates, from Pinocchio's aba and integrate"""
-    m = ref.model
+    return reference_step_pin(ref, ref.q(q), ref.G @ v, u, dt, scheme, fext)
+
+
+def reference_step_pin(ref, qp, vp, u, dt, scheme, fext=None):
+    """the same from a state in Pinocchio's coordinates"""
     G = ref.G
-    qp, vp = ref.q(q), G @ v
 
     def acc(qq_pin, vv_pin):
         # reduced forward dynamics at a Pinocchio state: the state is G-mapped from a reduced one
@@ -182,3 +185,54 @@ def test_batched_steps_equal_single_steps():
         for k in range(5):
             np.testing.assert_array_equal(X[k], rbd.integrator(Q[k], V[k], U[k], 0.01, scheme))
             np.testing.assert_array_equal(AB[k], rbd.integrator_gradient(Q[k], V[k], U[k], 0.01, scheme))
+
+
+# ---- a spherical joint inside a floating robot against Pinocchio's JointModelSpherical: the step
+# gradient and the step Hessian of every scheme, from steps built by Pinocchio (pin.aba's dynamics,
+# pin.integrate, pin.difference), both derivatives by central differences of those steps
+
+@pytest.fixture(scope="module")
+def spherical_floating():
+    return Reference(os.path.join(URDF_DIR, "spherical.urdf"), True)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_spherical_in_floating_step_derivatives_match_pinocchio(spherical_floating, scheme):
+    ref = spherical_floating
+    m, nv = ref.model, ref.model.nv
+    assert ref.pin.joints[1].shortname() == "JointModelFreeFlyer"
+    assert any(j.shortname() == "JointModelSpherical" for j in ref.pin.joints)
+    rbd = rbdkit.RBD(m)
+    rng = np.random.default_rng(7)
+    q, v, u = m.random_configuration(rng), rng.uniform(-2, 2, nv), rng.uniform(-5, 5, nv)
+    v[3:6] = [3.0, -2.0, 2.5]  # the base turning: its brackets matter
+    dt = 0.02
+    x = np.concatenate([q, v])
+    G = ref.G  # rbdkit's tangent coordinates -> Pinocchio's (a permutation: the joint orders differ)
+    np.testing.assert_array_equal(G @ G.T, np.eye(nv))
+    AB, H = rbd.plant_step_gradient(x, u, dt, scheme), rbd.plant_step_hessian(x, u, dt, scheme)
+    qp0, vp0 = reference_step(ref, q, v, u, dt, scheme)
+
+    def psi(z):  # the Pinocchio-built step at (q ⊕ δq, v + δv, u + δu), in the tangent at the nominal one
+        qz = pin.integrate(ref.pin, ref.q(q), G @ z[:nv])
+        qn, vn = reference_step_pin(ref, qz, G @ (v + z[nv:2 * nv]), u + z[2 * nv:], dt, scheme)
+        return np.concatenate([G.T @ pin.difference(ref.pin, qp0, qn), G.T @ (vn - vp0)])
+
+    n = 3 * nv
+    E = np.eye(n)
+    h = 1e-5
+    F = np.stack([(psi(h * E[k]) - psi(-h * E[k])) / (2 * h) for k in range(n)], axis=1)
+    assert_close(AB, F, f"{scheme} plant_step_gradient vs Pinocchio's steps", 1e-6)
+    # the Hessian on the directions where the two joints' manifolds act: the free flyer's six, the
+    # ball's three, and one velocity and one torque coordinate of each (every pair of them)
+    ball = next(j["v_index"] for j in m.joints if j["type"] == "spherical")
+    dirs = list(range(6)) + [ball, ball + 1, ball + 2, nv + 3, nv + ball + 1, 2 * nv + 4, 2 * nv + ball]
+    h2 = 2e-3  # second differences, Richardson-extrapolated (h, h/2)
+    err, scale = 0.0, max(1.0, np.max(np.abs(H)))
+    for a, j in enumerate(dirs):
+        for k in dirs[a:]:
+            def d2(s):
+                x, y = s * E[j], s * E[k]
+                return (psi(x + y) - psi(x - y) - psi(y - x) + psi(-x - y)) / (4 * s * s)
+            err = max(err, np.max(np.abs(H[:, j, k] - (4 * d2(h2 / 2) - d2(h2)) / 3)) / scale)
+    assert err < 1e-5, f"{scheme} plant_step_hessian vs Pinocchio's steps: relative error {err:.1e}"

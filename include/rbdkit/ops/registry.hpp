@@ -30,6 +30,7 @@
 #include "rbdkit/model/configuration.hpp"
 #include "rbdkit/ops/op.hpp"
 #include "rbdkit/plant/costs.hpp"
+#include "rbdkit/plant/hessian_forms.hpp"
 #include "rbdkit/plant/integrator_hessian.hpp"
 #include "rbdkit/plant/integrators.hpp"
 #include "rbdkit/plant/mujoco_convention.hpp"
@@ -48,6 +49,7 @@ inline constexpr const char* kWrtFromTo[] = {"from", "to", nullptr};
 inline constexpr const char* kFdStepName[] = {"finite-difference step", nullptr};
 inline constexpr const char* kBarrierWeightName[] = {"barrier weight", nullptr};
 inline constexpr const char* kReferenceFrames[] = {"LOCAL", "WORLD", "LOCAL_WORLD_ALIGNED", nullptr};  // ReferenceFrame
+inline constexpr const char* kHessianForms[] = {"rbdkit", "reference", nullptr};  // HessianForm
 
 // ---------------------------------------------------------------- dynamics (rnea, crba, minv, aba)
 
@@ -569,17 +571,24 @@ struct PlantStepHessian {
       "[q⁺(z) ⊖ q⁺(0); qd⁺(z) - qd⁺(0)], H[i, j, k] = ∂²ψ_i/∂z_j∂z_k (symmetric in j, k), so that x⁺(z) = x⁺(0) ⊕ "
       "(AB z + ½ H[z, z] + O(|z|³)) with AB = plant_step_gradient (x⁺ and AB are the first two outputs). "
       "output_convention=\"mujoco\": x, u in MuJoCo's qpos/qvel layout and ⊕ / ⊖ MuJoCo's. No f_ext (the "
-      "second-order forward dynamics take no external forces).",
-      6,
+      "second-order forward dynamics take no external forces). form=\"reference\": the reference "
+      "implementation's H[i, j, k] = ∂AB[i, k]/∂z_j, AB differentiated along x ⊕ δ with each AB read at its own "
+      "output; it differs from the default by the Lie brackets of free-flyer and spherical joints, an "
+      "antisymmetric part (docs/conventions.md).",
+      7,
       {array("x", shape(kNx), kConfiguration), array("u", shape(kNv)), param("dt", kTimeStep, kRequired),
-       param("integrator_type", kIntegrator, 0), real("gravity", kGravity), param("output_convention", kConvention, 0)},
+       param("integrator_type", kIntegrator, 0), real("gravity", kGravity), param("output_convention", kConvention, 0),
+       param("form", kChoice, 0, kHessianForms)},
       3, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}, {"H", shape(k2Nv, k3Nv, k3Nv)}}, 0b100, 0, kFull,
       kScratchIntegratorHessian, kStepFailed, kAnyModel, kFiniteOutputs, 0, kCalled};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     S* x = a.out[0] ? a.out[0] : a.scratch + integrator_hessian_scratch_values(m.nq, m.nv);
     S* AB = a.out[1] ? a.out[1] : x + m.nq + m.nv;
-    return integrator_hessian(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.real[2], a.real[4], x,
-                              x + m.nq, AB, a.out[2], a.scratch, a.choice[5]);
+    if (!integrator_hessian(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.real[2], a.real[4], x, x + m.nq,
+                            AB, a.out[2], a.scratch, a.choice[5]))
+      return false;
+    if (a.choice[6] == kReferenceForm) step_hessian_reference_form(m, a.choice[5], AB, a.out[2]);
+    return true;
   }
 };
 
@@ -1040,10 +1049,11 @@ struct EndEffectorPoseHessian {
       "end_effector_pose_hessian", "end_effector_pose_hessian", "kinematics",
       "Hessian (n_ee, 6, nv, nv) of end_effector_pose, H[e, r, j, k] = ∂gradient[e, r, k]/∂δ_j, by forward-mode "
       "dual numbers through the analytic gradient (exact; one pass per tangent direction). Not symmetric within "
-      "free-flyer and spherical joints. Note the argument order: offsets before ee_joint_names.",
-      3,
+      "free-flyer and spherical joints; form=\"reference\": its symmetric part ½ (H + Hᵀ) in (j, k), the "
+      "reference implementation's. Note the argument order: offsets before ee_joint_names.",
+      4,
       {array("q", shape(kNq), kConfiguration), optional_array("offsets", shape(kNee, 3)),
-       end_effectors("ee_joint_names")},
+       end_effectors("ee_joint_names"), param("form", kChoice, 0, kHessianForms)},
       1, {{"H", shape(kNee, 6, kNv, kNv)}}, 0b1, 0, kLinear, kScratchEeHessianDual, kNotPositiveDefinite, kAnyModel,
       kFiniteOutputs, 0, kCalled};
   // direction j: the gradient at q ⊕ ε e_j in dual numbers; its ε parts are H[e, :, j, :]
@@ -1076,6 +1086,7 @@ struct EndEffectorPoseHessian {
           for (int k = 0; k < nv; ++k) He[(r * nv + j) * nv + k] = G[r * nv + k].d;
       }
     }
+    if (a.choice[3] == kReferenceForm) symmetrize_last_two(a.out[0], 6L * a.n_ee, nv);
     return true;
   }
 };
@@ -1085,11 +1096,12 @@ struct EndEffectorPoseHessianAnalytic {
       "end_effector_pose_hessian_analytic", "end_effector_pose_hessian", "kinematics",
       "Hessian (n_ee, 6, nv, nv) of end_effector_pose in closed form, H[e, r, j, k] = ∂gradient[e, r, k]/∂δ_j: for "
       "support-chain columns s_j, s_k with j an ancestor of k (or in the same joint), ∂s_k/∂δ_j = s_j × s_k, and "
-      "the tool point moves with s_j. Not symmetric within free-flyer and spherical joints. Equal to the "
-      "dual-number end_effector_pose_hessian to rounding. Note the argument order: offsets before ee_joint_names.",
-      3,
+      "the tool point moves with s_j. Not symmetric within free-flyer and spherical joints; form=\"reference\": "
+      "its symmetric part, the reference implementation's. Equal to the dual-number end_effector_pose_hessian to "
+      "rounding. Note the argument order: offsets before ee_joint_names.",
+      4,
       {array("q", shape(kNq), kConfiguration), optional_array("offsets", shape(kNee, 3)),
-       end_effectors("ee_joint_names")},
+       end_effectors("ee_joint_names"), param("form", kChoice, 0, kHessianForms)},
       1, {{"H", shape(kNee, 6, kNv, kNv)}}, 0b1, 0, kLinear, kNoScratch, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     forward_kinematics(m, w, a.in[0], static_cast<const S*>(nullptr));
@@ -1097,6 +1109,7 @@ struct EndEffectorPoseHessianAnalytic {
       const Vec3<S> o = a.in[1] ? Vec3<S>{a.in[1][3 * e], a.in[1][3 * e + 1], a.in[1][3 * e + 2]} : Vec3<S>::zero();
       end_effector_pose_hessian_analytic(m, w, a.ee[e], o, a.out[0] + 6L * m.nv * m.nv * e);
     }
+    if (a.choice[3] == kReferenceForm) symmetrize_last_two(a.out[0], 6L * a.n_ee, m.nv);
     return true;
   }
 };
