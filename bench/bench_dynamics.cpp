@@ -24,7 +24,8 @@
 //                      callgrind client requests, so that
 //                      `valgrind --tool=callgrind --collect-atstart=no` writes
 //                      one dump per loop named <library>/<operation>/<robot>
-//                      (bench/callgrind.sh turns them into instructions per call)
+//                      (bench/run.sh's COUNT_CALLS mode runs it; bench/callgrind_report.py turns
+//                      the dumps into instructions per call)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>

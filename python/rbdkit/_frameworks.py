@@ -127,11 +127,11 @@ def call_keywords(op, names, args, kwargs):
     if len(args) > len(names):
         raise TypeError(f"{op}() takes at most {len(names)} arguments ({len(args)} given)")
     kw = dict(zip(names, args))
+    if "GRAVITY" in kwargs and "gravity" in names and ("gravity" in kw or "gravity" in kwargs):
+        raise TypeError(f"{op}() got both gravity and GRAVITY (its alias); pass one")
     for name, v in kwargs.items():
         if name == "GRAVITY" and "gravity" in names:
             name = "gravity"
-            if name in kw:
-                raise TypeError(f"{op}() got both gravity and GRAVITY (its alias); pass one")
         elif name in kw:
             raise TypeError(f"{op}() got multiple values for argument '{name}'")
         kw[name] = v

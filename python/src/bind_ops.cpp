@@ -451,12 +451,14 @@ bool bind_arguments(const OpHandle& h, const ops::OpSpec& op, PyObject* const* n
         return false;
       }
       if (slot[k]) {
-        if (alias || std::strcmp(op.args[k].name, "gravity") == 0)
-          for (Py_ssize_t i = 0; i < nkw; ++i)
-            if (i != j && PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, i), alias ? "gravity" : "GRAVITY") == 0) {
-              fail(PyExc_TypeError, std::string(op.name) + "() got both gravity and GRAVITY (its alias); pass one");
-              return false;
-            }
+        // gravity given twice under both names (by position or keyword, in either order)
+        bool both = alias;
+        for (Py_ssize_t i = 0; i < j && !both; ++i)
+          both = PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, i), "GRAVITY") == 0;
+        if (both) {
+          fail(PyExc_TypeError, std::string(op.name) + "() got both gravity and GRAVITY (its alias); pass one");
+          return false;
+        }
         fail(PyExc_TypeError, std::string(op.name) + "() got multiple values for argument '" + op.args[k].name + "'");
         return false;
       }

@@ -61,6 +61,13 @@ def test_gravity_alias_on_rbd_and_handle(hyq, op):
             fn(*args, **kw, gravity=G, GRAVITY=G)
         with pytest.raises(TypeError, match="both gravity and GRAVITY"):
             fn(*args, **kw, GRAVITY=G, gravity=G)
+        # gravity by position, GRAVITY by keyword: every argument before gravity by position (defaults
+        # where the call leaves them out)
+        params = list(inspect.signature(getattr(rbdkit.RBD, op)).parameters.values())[1:]  # (without self)
+        named = dict(zip(names, args), **kw)
+        before = [named.get(p.name, p.default) for p in params[:[p.name for p in params].index("gravity")]]
+        with pytest.raises(TypeError, match="both gravity and GRAVITY"):
+            fn(*before, G, GRAVITY=G)
     # gravity matters to these: the alias is not ignored
     if op in ("inverse_dynamics", "aba", "generalized_gravity"):
         r = rbdkit.RBD(hyq)
@@ -100,8 +107,9 @@ def test_gravity_alias_on_framework_handles(hyq, framework):
         got = got if isinstance(got, tuple) else (got,)
         for a, b in zip(got, ref):
             np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-        with pytest.raises(TypeError, match="both gravity and GRAVITY"):
-            fn(*args, **kw, gravity=G, GRAVITY=G)
+        for both in ({"gravity": G, "GRAVITY": G}, {"GRAVITY": G, "gravity": G}):
+            with pytest.raises(TypeError, match="both gravity and GRAVITY"):
+                fn(*args, **kw, **both)
     pi = hyq.inertial_parameters()
     q, qd, qdd = (v[n] for n in ("q", "qd", "qdd"))
     if framework == "torch":

@@ -32,7 +32,8 @@ template <typename S> struct BodyDesc {
   S mult, offset;     // mimic multiplier and offset (1, 0 otherwise)
   S pitch;            // helical pitch, metres per radian
   Vec3<S> axis;       // unit joint axis in the joint frame (1-DoF joints)
-  int axis_k;         // k + 1 when axis = ±e_k, a frame axis (kinematics without products by its zeros); 0 otherwise
+  int axis_k;         // k + 1 when axis = ±e_k, a frame axis (kinematics without products by its zeros); 0 otherwise.
+                      // Derived from axis by Model::finalize: set it again after changing axis
   Transform<S> X_tree;  // X_parent_joint: joint frame placed in the parent body frame
   Inertia<S> I;       // spatial inertia in the body frame (merged fixed links included)
 };
