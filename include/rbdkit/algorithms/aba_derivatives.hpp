@@ -63,6 +63,19 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
   }
 }
 
+// Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the direct inverse it
+// left (the product -M⁻¹ (-1) would cost nv³), or the mimic path's solves
+template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
+  const int nv = m.nv;
+  if (!m.has_mimic) {
+    for (int k = 0; k < nv * nv; ++k) Minv[k] = w.dense[k];
+    return;
+  }
+  for (int r = 0; r < nv; ++r)
+    for (int c = 0; c < nv; ++c) Minv[r * nv + c] = r == c ? S(-1) : S(0);
+  apply_neg_minv(m, w, Minv, nv);
+}
+
 // qdd (nv), ∂qdd/∂q and ∂qdd/∂qd (nv x nv each). false if M is not PD.
 template <typename S>
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,

@@ -25,6 +25,30 @@ template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Works
   }
 }
 
+// M_ji for the DoFs of ancestor j against one column F = Ic_i s: s_jᵀ F, written
+// to both triangles (add: accumulated, for mimic models). A free joint's six
+// world columns are R's columns and p × them, so its six products are F in the
+// joint's own frame, X_0j⁻¹ F (one force transform instead of six dot products)
+template <typename S>
+RBD_HD void crba_store_ancestor(const ModelView<S>& m, Workspace<S>& w, int j, const Force<S>& F, int c, bool add,
+                                S* M) {
+  const BodyDesc<S>& bj = m.body[j];
+  const int nv = m.nv;
+  S x[6];
+  if (bj.type == kFree) {
+    store(w.X_world[j].act_inv(F), x);
+  } else {
+    const Motion<S>* sj = w.S_world + 6 * j;
+    for (int l = 0; l < bj.nv; ++l) x[l] = dot(sj[l], F);
+  }
+  for (int l = 0; l < bj.nv; ++l) {
+    S& upper = M[(bj.v_idx + l) * nv + c];
+    S& lower = M[c * nv + bj.v_idx + l];
+    if (add) upper += x[l], lower += x[l];
+    else upper = x[l], lower = x[l];
+  }
+}
+
 // backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors,
 // Ic_λ += Ic_i. writes M (nv x nv, row-major), w.Ic (subtree sums).
 // Without mimic joints each (ancestor, descendant) pair of DoFs is met once,
@@ -36,26 +60,24 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
     const Motion<S>* si = w.S_world + 6 * i;
-    Force<S> F[6];
-    for (int k = 0; k < bi.nv; ++k) F[k] = w.Ic[i] * si[k];
-    // diagonal block
-    for (int k = 0; k < bi.nv; ++k)
-      for (int l = 0; l < bi.nv; ++l) {
-        S& x = M[(bi.v_idx + l) * nv + bi.v_idx + k];
-        x = add ? x + dot(si[l], F[k]) : dot(si[l], F[k]);
-      }
-    // off-diagonal blocks with every ancestor (and their transposes)
-    for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
-      const BodyDesc<S>& bj = m.body[j];
-      const Motion<S>* sj = w.S_world + 6 * j;
-      for (int k = 0; k < bi.nv; ++k)
-        for (int l = 0; l < bj.nv; ++l) {
-          const S x = dot(sj[l], F[k]);
-          S& upper = M[(bj.v_idx + l) * nv + bi.v_idx + k];
-          S& lower = M[(bi.v_idx + k) * nv + bj.v_idx + l];
-          if (add) upper += x, lower += x;
-          else upper = x, lower = x;
+    // one column F = Ic s per DoF of the joint, walked up the ancestors (one
+    // DoF, the common case: F stays in registers)
+    for (int k = 0; k < bi.nv; ++k) {
+      const Force<S> F = w.Ic[i] * si[k];
+      const int c = bi.v_idx + k;
+      // diagonal block: the joint's own DoFs l <= k (both triangles)
+      for (int l = 0; l <= k; ++l) {
+        const S x = dot(si[l], F);
+        S& upper = M[(bi.v_idx + l) * nv + c];
+        S& lower = M[c * nv + bi.v_idx + l];
+        if (add) {
+          upper += x;
+          if (l != k) lower += x;
+        } else {
+          upper = x, lower = x;
         }
+      }
+      for (int j = bi.parent; j >= 0; j = m.body[j].parent) crba_store_ancestor(m, w, j, F, c, add, M);
     }
     if (bi.parent >= 0) w.Ic[bi.parent] += w.Ic[i];
   }

@@ -164,9 +164,7 @@ RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S
   S* Aqv = Avv + nn * nv;  // ∂²a/∂q∂v
   // first order; aba_derivatives leaves M⁻¹ (mimic: its Cholesky factor) in w.dense
   if (!aba_derivatives(m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a, Fq, Fv)) return false;
-  for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nv; ++c) Fu[r * nv + c] = r == c ? S(-1) : S(0);
-  apply_neg_minv(m, w, Fu, nv);
+  copy_minv(m, w, Fu);
   // second order: T = [[sym Aqq, Aqv], [Aqvᵀ, Avv]]
   if (!fdsva_so(m, w, q, v, u, gravity, Aqq, Avv, Aqv, Aqu)) return false;
   for (int i = 0; i < nv; ++i) {

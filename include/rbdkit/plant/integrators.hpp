@@ -69,11 +69,7 @@ template <typename S> struct PinocchioStep {
   RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
                                               const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu, S*) {
     if (!aba_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv)) return false;
-    // ∂a/∂u = M⁻¹: aba_derivatives left M⁻¹ (or the Cholesky factor with mimic joints) in w.dense
-    const int nv = m.nv;
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) Fu[r * nv + c] = r == c ? S(-1) : S(0);
-    apply_neg_minv(m, w, Fu, nv);
+    copy_minv(m, w, Fu);  // ∂a/∂u = M⁻¹, which aba_derivatives left in w
     return true;
   }
 };

@@ -234,9 +234,7 @@ RBD_HD bool mujoco_acceleration_derivatives(const ModelView<S>& m, Workspace<S>&
   rotate_from_mujoco(m, q_mj, u_mj, u);
   // Pinocchio-frame derivatives; aba_derivatives leaves M⁻¹ (or its factor) in w
   if (!aba_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv)) return false;
-  for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nv; ++c) Fu[r * nv + c] = r == c ? S(-1) : S(0);
-  apply_neg_minv(m, w, Fu, nv);  // M⁻¹
+  copy_minv(m, w, Fu);  // M⁻¹
   acceleration_to_mujoco(m, q_mj, v, a, a_mj);
   // the input conversions' configuration dependence, then Cᵀ on the columns
   add_frame_dependence(m, v, Fv, Fq, nv);
