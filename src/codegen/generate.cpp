@@ -86,13 +86,8 @@ std::string comment_text(const std::string& s) {
   return out;
 }
 
-// body i's inertia read from pi (Model::inertial_parameters' layout: m, m·c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)
-std::string runtime_inertia(int i) {
-  const std::string b = "pi[" + std::to_string(10 * i);
-  auto at = [&](int k) { return k ? b + " + " + std::to_string(k) + "]" : b + "]"; };
-  return "{" + at(0) + ", {" + at(1) + ", " + at(2) + ", " + at(3) + "}, {{" + at(4) + ", " + at(5) + ", " + at(7) +
-         ", " + at(5) + ", " + at(6) + ", " + at(8) + ", " + at(7) + ", " + at(8) + ", " + at(9) + "}}}";
-}
+// body i's inertia read from pi at run time (the library's own reading of Model::inertial_parameters' layout)
+std::string runtime_inertia(int i) { return "rbd::inertia_from_parameters(&pi[" + std::to_string(10 * i) + "])"; }
 
 }  // namespace
 
@@ -121,6 +116,7 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "#include \"rbdkit/algorithms/aba_derivatives.hpp\"\n"
        "#include \"rbdkit/algorithms/crba.hpp\"\n"
        "#include \"rbdkit/algorithms/minv.hpp\"\n"
+       "#include \"rbdkit/algorithms/regressor.hpp\"\n"
        "#include \"rbdkit/algorithms/rnea.hpp\"\n"
        "#include \"rbdkit/algorithms/rnea_derivatives.hpp\"\n"
        "#include \"rbdkit/plant/integrators.hpp\"\n\n"
