@@ -8,8 +8,17 @@ rk4 step gradient and the Euler step Hessian; float32 and float64; B in
              "-" when neither is installed), outputs made there
   host       a call on NumPy arrays: copies in and out included
   cpu        the CPU engine (rbdkit.Handle(backend="cpu"), all cores)
+With --work-memory: two more resident columns, each sample's work (workspace
+and scratch) forced into global memory and into the block's shared memory
+(RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits;
+docs/cuda.md).
 
-    python3 bench/gpu.py [--quick] [--out table.md]
+With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
+N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:
+rk4 step gradients, state, input and end-effector costs), on the GPU
+(resident) against the CPU engine (issue 17, point 3).
+
+    python3 bench/gpu.py [--quick] [--work-memory] [--ilqr] [--out table.md]
 
 In interpret mode (RBDKIT_CUDA_INTERPRET=1, no GPU) the same runs, slowly:
 a smoke test of the script, not a measurement.
@@ -89,6 +98,42 @@ def nbytes(result):
     return sum(np.asarray(r).nbytes for r in result) if isinstance(result, tuple) else np.asarray(result).nbytes
 
 
+def ilqr_table(out, dev, budget, K=64, N=100):
+    """one iLQR iteration's derivatives on K trajectories of N knots of iiwa: µs per iteration"""
+    model = rbdkit.robots.load("iiwa")
+    B, nq, nv = K * N, model.nq, model.nv
+    out()
+    out(f"iLQR derivatives, iiwa, K = {K} trajectories × N = {N} knots (B = {B}): rk4 step gradients, "
+        "state, input and end-effector costs; µs per iteration")
+    out()
+    out("| dtype | GPU resident | CPU engine | cpu / resident |")
+    out("|---|---:|---:|---:|")
+    for dtype in ("float32", "float64"):
+        rng = np.random.default_rng(1)
+        cpu = rbdkit.Handle(model, backend="cpu", dtype=dtype)
+        q = np.stack([cpu.rbd.integrate(model.neutral(), rng.uniform(-1, 1, nv)) for _ in range(B)]).astype(dtype)
+        qd, u = (rng.uniform(-1, 1, (B, nv)).astype(dtype) for _ in range(2))
+        x = np.concatenate([q, qd], axis=1)
+        arrays = dict(q=q, qd=qd, u=u, x=x, x_des=np.zeros_like(x), Q=np.ones_like(x), u_des=np.zeros_like(u),
+                      R=np.full_like(u, 1e-3), p_des=np.tile(np.array([0.5, 0.2, 0.6], dtype), (B, 1)),
+                      W=np.full((B, 3), 1e4, dtype))
+
+        def iteration(h, a):
+            h.integrator_gradient(a["q"], a["qd"], a["u"], dt=0.01, integrator_type="rk4")
+            h.quadratic_state_cost(a["x"], a["x_des"], a["Q"])
+            h.quadratic_input_cost(a["u"], a["u_des"], a["R"])
+            h.ee_pos_cost(a["q"], a["p_des"], a["W"])
+
+        t_cpu = per_call(iteration, (cpu, arrays), {}, lambda: None, budget * 4) * 1e6
+        res = "-"
+        if dev:
+            cu = rbdkit.Handle(model, backend="cuda", dtype=dtype)
+            darrays = {k: dev[1](v) for k, v in arrays.items()}
+            t_res = per_call(iteration, (cu, darrays), {}, dev[2], budget * 4) * 1e6
+            res = f"{t_res:.0f}"
+        out(f"| {dtype} | {res} | {t_cpu:.0f} | {'-' if res == '-' else f'{t_cpu / t_res:.1f}×'} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="iiwa and floating HyQ, B in {1, 256, 4096}")
@@ -100,6 +145,11 @@ def main():
     ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
                     help="the device arrays of the resident column")
+    ap.add_argument("--work-memory", action="store_true",
+                    help="also time the resident call with the work in global and in shared memory")
+    ap.add_argument("--ilqr", action="store_true",
+                    help="also time one iLQR iteration's derivatives for 64 iiwa trajectories of 100 knots")
+    ap.add_argument("--only-ilqr", action="store_true", help="the --ilqr table only")
     a = ap.parse_args()
     robots = ROBOTS[:1] + ROBOTS[3:4] if a.quick else ROBOTS
     if a.robots:
@@ -119,18 +169,24 @@ def main():
         lines.append(s)
 
     gpu = None
-    for robot, floating in robots:
+    for robot, floating in robots if not a.only_ilqr else ():
         model = rbdkit.robots.load(robot, floating_base=floating)
         for dtype in ("float32", "float64"):
             cu = rbdkit.Handle(model, backend="cuda", dtype=dtype)
             cpu = rbdkit.Handle(model, backend="cpu", dtype=dtype)
+            forced = {}  # --work-memory: handles with the work forced into one memory
+            for where in ("global", "shared") if a.work_memory and dev else ():
+                os.environ["RBDKIT_CUDA_WORK"] = where
+                forced[where] = rbdkit.Handle(model, backend="cuda", dtype=dtype)
+                del os.environ["RBDKIT_CUDA_WORK"]
             if gpu is None:
                 gpu = cu.device
                 out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
                     f"(CPU engine: {cpu.threads} threads; device arrays: {dev[0] if dev else 'none'})")
                 out()
-                out("| robot | dtype | op | B | resident | host | cpu | cpu / resident |")
-                out("|---|---|---|---:|---:|---:|---:|---:|")
+                extra = " global | shared |" if a.work_memory else ""
+                out(f"| robot | dtype | op | B | resident | host | cpu | cpu / resident |{extra}")
+                out("|---|---|---|---:|---:|---:|---:|---:|" + ("---:|---:|" if a.work_memory else ""))
             for label, op in OPS:
                 args1, kw1 = arguments(cpu, op, 1, np.random.default_rng(0))
                 per_sample = nbytes(getattr(cpu, op)(*args1, **kw1)) + sum(x.nbytes for x in args1)
@@ -148,8 +204,19 @@ def main():
                     if dev:
                         dargs = tuple(dev[1](x) for x in args)
                         res = per_call(getattr(cu, op), dargs, kw, dev[2], a.budget) / B * 1e6
+                    cols = ""
+                    for where, h in forced.items():
+                        try:
+                            t = per_call(getattr(h, op), dargs, kw, dev[2], a.budget) / B * 1e6
+                            cols += f" {t:.3f} |"
+                        except ValueError:  # a sample's work exceeds a block's shared memory
+                            cols += " - |"
+                    if a.work_memory and not forced:
+                        cols = " - | - |"
                     out(f"| {name} | {dtype} | {label} | {B} | {'-' if res is None else f'{res:.3f}'} | "
-                        f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |")
+                        f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |{cols}")
+    if a.ilqr or a.only_ilqr:
+        ilqr_table(out, dev, a.budget)
     if a.out:
         with open(a.out, "w") as f:
             f.write("\n".join(lines) + "\n")

@@ -19,6 +19,7 @@ void check(cudaError_t e, const char* what) {
 
 struct CudaDevice : Device {
   std::string device;
+  DeviceLimits lim{};
   int id = 0;  // the device current when the engine was made: every call runs there
   CudaDevice() {
     int n = 0;
@@ -31,9 +32,12 @@ struct CudaDevice : Device {
     cudaDeviceProp p;
     check(cudaGetDeviceProperties(&p, id), "cudaGetDeviceProperties");
     device = p.name;
+    lim.multiprocessors = p.multiProcessorCount;
+    lim.shared_bytes = p.sharedMemPerBlockOptin;
   }
   void activate() override { check(cudaSetDevice(id), "cudaSetDevice"); }
   std::string name() const override { return device; }
+  DeviceLimits limits() const override { return lim; }
   void* alloc(size_t bytes) override {
     void* p = nullptr;
     check(cudaMalloc(&p, bytes ? bytes : 1), ("cudaMalloc of " + std::to_string(bytes) + " bytes").c_str());
@@ -46,12 +50,12 @@ struct CudaDevice : Device {
   void to_host(void* dst, const void* src, size_t bytes, void* s) override {
     check(cudaMemcpyAsync(dst, src, bytes, cudaMemcpyDeviceToHost, static_cast<cudaStream_t>(s)), "copy to host");
   }
-  void launch(int op, const DeviceCall<double>& c, void* s) override {
-    device_routes<double>()[op](c, s);
+  void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* s) override {
+    device_routes<double>()[op](c, shape, s);
     check(cudaPeekAtLastError(), "kernel launch");
   }
-  void launch(int op, const DeviceCall<float>& c, void* s) override {
-    device_routes<float>()[op](c, s);
+  void launch(int op, const DeviceCall<float>& c, LaunchShape shape, void* s) override {
+    device_routes<float>()[op](c, shape, s);
     check(cudaPeekAtLastError(), "kernel launch");
   }
   void synchronize(void* s) override { check(cudaStreamSynchronize(static_cast<cudaStream_t>(s)), "kernel"); }

@@ -18,12 +18,13 @@ namespace cuda {
 struct Device {
   virtual ~Device() = default;
   virtual std::string name() const = 0;
+  virtual DeviceLimits limits() const = 0;
   virtual void* alloc(size_t bytes) = 0;  // throws std::runtime_error when out of memory
   virtual void release(void* p) = 0;
   virtual void to_device(void* dst, const void* src, size_t bytes, void* stream) = 0;
   virtual void to_host(void* dst, const void* src, size_t bytes, void* stream) = 0;
-  virtual void launch(int op, const DeviceCall<double>& c, void* stream) = 0;
-  virtual void launch(int op, const DeviceCall<float>& c, void* stream) = 0;
+  virtual void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* stream) = 0;
+  virtual void launch(int op, const DeviceCall<float>& c, LaunchShape shape, void* stream) = 0;
   virtual void synchronize(void* stream) = 0;  // throws std::runtime_error on a launch's failure
   virtual void* create_stream() = 0;
   virtual void destroy_stream(void* stream) = 0;

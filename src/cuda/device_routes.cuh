@@ -10,10 +10,19 @@
 namespace rbd {
 namespace cuda {
 
-template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, void* stream) {
-  const LaunchShape shape = launch_shape(c.B);
-  op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, 0, static_cast<cudaStream_t>(stream)>>>(
-      c, c.model.body);
+template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
+  if (shape.shared_bytes > 48 * 1024) {
+    // past the default 48 kB, a kernel's dynamic shared memory must be allowed per kernel (the
+    // launch then fails, and says so, if the device has less)
+    static unsigned long allowed = 0;  // (one device per process: the engine's)
+    if (shape.shared_bytes > allowed) {
+      cudaFuncSetAttribute(op_kernel<Op, T>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                           static_cast<int>(shape.shared_bytes));
+      allowed = shape.shared_bytes;
+    }
+  }
+  op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, shape.shared_bytes,
+                     static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
 }
 
 template <typename T, typename... Op> const Launcher<T>* device_table(ops::OpList<Op...>) {

@@ -14,6 +14,8 @@ namespace {
 
 struct InterpretDevice : Device {
   std::string name() const override { return "interpret (CPU)"; }
+  // a small GPU's (so that small test batches already share blocks), with an H100's shared memory
+  DeviceLimits limits() const override { return {4, 227ul * 1024}; }
   void* alloc(size_t bytes) override {
     void* p = std::aligned_alloc(64, (bytes + 63) / 64 * 64 + 64);
     if (!p) throw std::runtime_error("cuda (interpret): out of host memory for " + std::to_string(bytes) + " bytes");
@@ -22,8 +24,12 @@ struct InterpretDevice : Device {
   void release(void* p) override { std::free(p); }
   void to_device(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
   void to_host(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
-  void launch(int op, const DeviceCall<double>& c, void* stream) override { interpret_routes<double>()[op](c, stream); }
-  void launch(int op, const DeviceCall<float>& c, void* stream) override { interpret_routes<float>()[op](c, stream); }
+  void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* stream) override {
+    interpret_routes<double>()[op](c, shape, stream);
+  }
+  void launch(int op, const DeviceCall<float>& c, LaunchShape shape, void* stream) override {
+    interpret_routes<float>()[op](c, shape, stream);
+  }
   void synchronize(void*) override {}
   void* create_stream() override { return nullptr; }
   void destroy_stream(void*) override {}

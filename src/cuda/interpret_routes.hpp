@@ -8,7 +8,9 @@
 namespace rbd {
 namespace cuda {
 
-template <typename Op, typename T> void interpret_launch(const DeviceCall<T>& c, void*) { interpret_op<Op>(c); }
+template <typename Op, typename T> void interpret_launch(const DeviceCall<T>& c, LaunchShape shape, void*) {
+  interpret_op<Op>(c, shape);
+}
 
 template <typename T, typename... Op> const Launcher<T>* interpret_table(ops::OpList<Op...>) {
   static const Launcher<T> table[] = {&interpret_launch<Op, T>...};

@@ -11,17 +11,20 @@
 // next one (emulate_launch below).
 //
 // Layout (docs/cuda.md): inputs and outputs are the caller's row-major
-// (B x shape) arrays (an unbatched input has stride 0); each sample owns a
-// slice of one global work buffer, its workspace (model/workspace.hpp,
-// carved per sample) then its scratch; the model's bodies are uploaded once
-// per handle and reach the kernel as a `const __restrict__` parameter: read
-// only for the kernel's lifetime, so nvcc loads them through the read-only
-// data cache (ld.global.nc), and every thread of a warp reads the same body
-// at the same time (one broadcast load). A sample whose kernel fails, or
+// (B x shape) arrays (an unbatched input has stride 0); each sample's work
+// slice, its workspace (model/workspace.hpp, carved per sample) then its
+// scratch, lives in the block's shared memory when the block's samples fit
+// there (launch_shape), else in one global work buffer; the model's bodies
+// are uploaded once per handle and reach the kernel as a `const __restrict__`
+// parameter: read only for the kernel's lifetime, so nvcc loads them through
+// the read-only data cache (ld.global.nc), and every thread of a warp reads
+// the same body at the same time (one broadcast load). A sample whose inputs
+// fail the value checks (device arrays: inputs_ok), whose kernel fails, or
 // whose outputs are not finite, writes its status; the host names those
 // samples.
 #pragma once
 
+#include "rbdkit/model/input_bounds.hpp"
 #include "rbdkit/ops/registry.hpp"
 
 namespace rbd {
@@ -31,7 +34,8 @@ namespace cuda {
 enum SampleStatus : int {
   kSampleOk = 0,
   kSampleFailed = 1,    // the kernel returned false (OpSpec::failure names why)
-  kSampleNonFinite = 2  // + o: output o holds an inf or a NaN (an overflow)
+  kSampleNonFinite = 2,  // + o: output o holds an inf or a NaN (an overflow)
+  kSampleBadInput = -1   // an input fails check_call's value checks (inputs_ok; not computed)
 };
 
 // one launch of an operation on device memory (pointers the kernel reads:
@@ -40,6 +44,8 @@ template <typename T> struct DeviceCall {
   long B;
   const T* in[ops::kMaxArgs];      // (B x values) or (values) when in_stride is 0; null: absent
   long in_stride[ops::kMaxArgs];   // values from one sample to the next
+  long in_values[ops::kMaxArgs];   // values per sample
+  int check_inputs;                // 1: check the arrays' values (inputs_ok) before computing
   T real[ops::kMaxArgs];           // kReal, kTimeStep, kPositive
   int choice[ops::kMaxArgs];       // flags, choices, a frame's body, an end effector's body
   T* out[ops::kMaxOutputs];        // (B x out_values) or null
@@ -50,7 +56,8 @@ template <typename T> struct DeviceCall {
   WorkspaceLayout layout;
   unsigned long work_bytes;        // per sample: the workspace, then the scratch (16-byte multiple)
   unsigned long ws_bytes;          // the workspace part
-  unsigned char* work;             // (B x work_bytes)
+  unsigned char* work;             // (B x work_bytes), or null when the work is in shared memory
+  int work_shared;                 // 1: each thread's work slice is in its block's shared memory
   int* status;                     // (B): SampleStatus
 };
 
@@ -61,12 +68,76 @@ template <typename T> RBD_HD bool all_finite(const T* x, long n) {
   return acc == acc;
 }
 
-// sample s of Op on model m (c.model, its bodies as the kernel reads them):
-// its arguments, workspace and scratch, the kernel, its status
-template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
+// the value checks of ops::check_call (src/ops/ops.cpp) on sample s's arrays, as a predicate, in
+// double as there: finite values of magnitude at most the dtype's bound, non-negative weights,
+// ordered bounds, configurations with bounded angles and unit quaternions. For device arrays,
+// which the host cannot read without a copy; a sample that fails is not computed, and the host
+// words the error from a copy of the inputs (CudaEngine::Impl::fail)
+template <typename T> RBD_HD constexpr double input_bound() { return sizeof(T) == 4 ? kMaxInputF32 : kMaxInput; }
+template <typename T> RBD_HD constexpr double angle_bound() { return sizeof(T) == 4 ? kMaxAngleF32 : kMaxAngle; }
+template <typename T> RBD_HD bool bounded_values(const T* x, long n) {
+  bool ok = true;
+  for (long k = 0; k < n; ++k) ok &= fabs(static_cast<double>(x[k])) <= input_bound<T>();  // false for NaN
+  return ok;
+}
+template <typename T> RBD_HD bool configuration_ok(const ModelView<T>& m, const T* q) {
+  bool ok = bounded_values(q, m.nq);
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<T>& b = m.body[i];
+    if (b.mimic) continue;
+    if (b.type == kRevolute || b.type == kHelical) ok &= fabs(static_cast<double>(q[b.q_idx])) <= angle_bound<T>();
+    if (b.type == kFree || b.type == kSpherical) {
+      const T* h = q + b.q_idx + (b.type == kFree ? 3 : 0);
+      double n2 = 0;
+      for (int k = 0; k < 4; ++k) n2 += static_cast<double>(h[k]) * static_cast<double>(h[k]);
+      ok &= fabs(sqrt(n2) - 1.0) <= 1e-6;
+    }
+  }
+  return ok;
+}
+template <typename Op, typename T> RBD_HD bool inputs_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
+  bool ok = true;
+  for (int k = 0; k < Op::spec.n_args; ++k) {
+    const ops::ArgSpec& a = Op::spec.args[k];
+    if ((a.kind != ops::kArray && a.kind != ops::kOptionalArray) || !c.in[k]) continue;
+    const T* x = c.in[k] + s * c.in_stride[k];
+    const long n = c.in_values[k];
+    switch (a.check) {
+      case ops::kFiniteValues: ok &= bounded_values(x, n); break;
+      case ops::kWeights:
+        ok &= bounded_values(x, n);
+        for (long j = 0; j < n; ++j) ok &= x[j] >= T(0);
+        break;
+      case ops::kLowerBound: break;  // with its upper bound, the argument after it
+      case ops::kUpperBound: {
+        const T* lo = c.in[k - 1] + s * c.in_stride[k - 1];
+        for (long j = 0; j < n; ++j) {
+          const double l = lo[j], h = x[j];  // each finite within the bound or infinite; l < h; no NaN
+          ok &= (fabs(l) <= input_bound<T>() || isinf(l)) && (fabs(h) <= input_bound<T>() || isinf(h));
+          ok &= l < h && l != INFINITY && h != -INFINITY;
+        }
+        break;
+      }
+      case ops::kConfiguration:
+      case ops::kMujocoConfiguration:  // (a quaternion's norm is the same in either layout)
+        ok &= configuration_ok(m, x) && bounded_values(x, n);
+        break;
+    }
+  }
+  return ok;
+}
+
+// sample s of Op on model m (c.model, its bodies as the kernel reads them)
+// in `work` (its work slice: workspace, then scratch): its arguments, the
+// kernel, its status
+template <typename Op, typename T>
+RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s, unsigned char* work) {
   constexpr int n_out = Op::spec.n_out;
   constexpr bool finite_outputs = Op::spec.outputs == ops::kFiniteOutputs;
-  unsigned char* work = c.work + static_cast<unsigned long>(s) * c.work_bytes;
+  if (c.check_inputs && !inputs_ok<Op>(c, m, s)) {
+    c.status[s] = kSampleBadInput;
+    return;
+  }
   Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
   ops::OpArgs<T> a;
   for (int k = 0; k < ops::kMaxArgs; ++k) {
@@ -88,54 +159,93 @@ template <typename Op, typename T> RBD_HD void op_sample(const DeviceCall<T>& c,
   c.status[s] = status;
 }
 
-// the samples one thread owns: first, first + stride, ... below B
+// the samples one thread owns: first, first + stride, ... below B; `slot`:
+// the thread's work slice in shared memory (c.work_shared), reused for each
 template <typename Op, typename T>
-RBD_HD void op_samples(const DeviceCall<T>& c, const ModelView<T>& m, long first, long stride) {
-  for (long s = first; s < c.B; s += stride) op_sample<Op>(c, m, s);
+RBD_HD void op_samples(const DeviceCall<T>& c, const ModelView<T>& m, long first, long stride, unsigned char* slot) {
+  for (long s = first; s < c.B; s += stride)
+    op_sample<Op>(c, m, s, c.work_shared ? slot : c.work + static_cast<unsigned long>(s) * c.work_bytes);
 }
 
 #if defined(__CUDACC__)
 // `bodies` is c.model.body, passed apart so that it can be declared read only
-// and unaliased for the kernel (a qualifier on a struct member is not honoured)
+// and unaliased for the kernel (a qualifier on a struct member is not honoured).
+// Dynamic shared memory: blockDim.x work slices when c.work_shared
 template <typename Op, typename T>
 __global__ void op_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
+  extern __shared__ __align__(16) unsigned char shared_work[];
   const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
   op_samples<Op>(c, m, static_cast<long>(blockIdx.x) * blockDim.x + threadIdx.x,
-                 static_cast<long>(gridDim.x) * blockDim.x);
+                 static_cast<long>(gridDim.x) * blockDim.x, shared_work + threadIdx.x * c.work_bytes);
 }
 #endif
 
-// ---- the emulated launch (interpret mode): grid x block threads, run
-// serially; `phase(block, thread)` is one phase of the kernel for one thread
-// (a barrier-free kernel has one)
+// ---- the launch
+// what the engine needs of the device to shape a launch
+struct DeviceLimits {
+  int multiprocessors;         // SMs
+  unsigned long shared_bytes;  // dynamic shared memory a block may have (the opt-in maximum)
+};
+// where the samples' work slices live: the launch shape decides (kWorkAuto),
+// or the caller (CudaEngine::set_work_memory; RBDKIT_CUDA_WORK=global|shared)
+enum WorkMemory : int { kWorkAuto = 0, kWorkGlobal = 1, kWorkShared = 2 };
+
 struct LaunchShape {
   long blocks;
   int threads;
+  unsigned long shared_bytes;  // per block; 0: the work slices are in global memory
 };
+
+// the emulated launch (interpret mode): grid x block threads, run serially;
+// `phase(block, thread, shared)` is one phase of the kernel for one thread
+// (a barrier-free kernel has one), `shared` its block's shared memory
 template <typename Phase> void emulate_launch(LaunchShape shape, Phase&& phase) {
+  struct alignas(16) Chunk {
+    unsigned char b[16];
+  };
+  Chunk* shared = shape.shared_bytes ? new Chunk[(shape.shared_bytes + 15) / 16] : nullptr;
   for (long b = 0; b < shape.blocks; ++b)
-    for (int t = 0; t < shape.threads; ++t) phase(b, t);
+    for (int t = 0; t < shape.threads; ++t) phase(b, t, reinterpret_cast<unsigned char*>(shared));
+  delete[] shared;
 }
 
-// the launch of B samples: 128 threads per block (one warp-multiple block
-// that keeps the per-thread workspaces' footprint moderate), enough blocks to
-// give every sample a thread, at most kMaxBlocks (then the grid strides)
+// the launch of B samples of `work_bytes` each (the shape is the same for
+// every operation of that size; docs/cuda.md, "Kernel layout"):
+//   threads per block: spread the samples over the multiprocessors first
+//     (a block per SM until every SM has one), then up to 128 per block;
+//   work in shared memory when at least one sample's slice fits a block's
+//     (a block then holds as many samples as fit, at most 32), else global;
+//   blocks: one thread per sample, at most kMaxBlocks (then the grid strides)
 constexpr int kThreadsPerBlock = 128;
 constexpr long kMaxBlocks = 65535;
-inline LaunchShape launch_shape(long B) {
-  long blocks = (B + kThreadsPerBlock - 1) / kThreadsPerBlock;
+inline LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode) {
+  const long sms = d.multiprocessors > 0 ? d.multiprocessors : 1;
+  const long per_sm = (B + sms - 1) / sms;  // samples per SM when every SM has a block
+  const long fit = work_bytes ? static_cast<long>(d.shared_bytes / work_bytes) : 0;
+  const bool shared = mode == kWorkShared || (mode == kWorkAuto && fit >= 1);
+  long threads;
+  if (shared) {
+    threads = per_sm < 32 ? per_sm : 32;
+    if (threads > fit) threads = fit;
+    if (threads < 1) threads = 1;  // (kWorkShared with a slice larger than a block's: the launch fails, named)
+  } else {
+    threads = (per_sm + 31) / 32 * 32;
+    threads = threads < 32 ? 32 : threads > kThreadsPerBlock ? kThreadsPerBlock : threads;
+  }
+  long blocks = (B + threads - 1) / threads;
   if (blocks > kMaxBlocks) blocks = kMaxBlocks;
-  return {blocks < 1 ? 1 : blocks, kThreadsPerBlock};
+  return {blocks < 1 ? 1 : blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul};
 }
 
 // Op's launch in interpret mode: the kernel's body for every (block, thread)
-template <typename Op, typename T> void interpret_op(const DeviceCall<T>& c) {
-  const LaunchShape shape = launch_shape(c.B);
+template <typename Op, typename T> void interpret_op(const DeviceCall<T>& c, LaunchShape shape) {
   const long stride = shape.blocks * shape.threads;
-  emulate_launch(shape, [&](long b, int t) { op_samples<Op>(c, c.model, b * shape.threads + t, stride); });
+  emulate_launch(shape, [&](long b, int t, unsigned char* shared) {
+    op_samples<Op>(c, c.model, b * shape.threads + t, stride, shared ? shared + t * c.work_bytes : nullptr);
+  });
 }
 
-template <typename T> using Launcher = void (*)(const DeviceCall<T>&, void* stream);
+template <typename T> using Launcher = void (*)(const DeviceCall<T>&, LaunchShape shape, void* stream);
 
 }  // namespace cuda
 }  // namespace rbd

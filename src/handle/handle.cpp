@@ -190,7 +190,7 @@ bool Handle::has(const std::string& operation) const {
          std::find(operations_.begin(), operations_.end(), operation) != operations_.end();
 }
 
-void Handle::check(int op, const ops::OpCall& call) const {
+void Handle::check(int op, const ops::OpCall& call, bool values) const {
   if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
     throw std::invalid_argument("run: unknown operation id " + std::to_string(op));
   const ops::OpEntry& e = ops::op_table()[op];
@@ -202,8 +202,8 @@ void Handle::check(int op, const ops::OpCall& call) const {
     throw std::invalid_argument(std::string(e.spec->name) +
                                 ": does not support output_convention='mujoco' on a model with free-flyer or "
                                 "spherical joints; use a handle with output_convention='pinocchio'");
-  if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call);
-  else ops::check_call<double>(model_, *e.spec, call);
+  if (dtype_ == "float32") ops::check_call<float>(model_, *e.spec, call, values);
+  else ops::check_call<double>(model_, *e.spec, call, values);
 }
 
 void Handle::run(int op, const ops::OpCall& call) {
@@ -227,22 +227,9 @@ void Handle::run_device(int op, const ops::OpCall& call) {
     throw std::invalid_argument("run_device: device arrays need a handle with backend='cuda' (this one is 'cpu')");
   if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
     throw std::invalid_argument("run: unknown operation id " + std::to_string(op));
-  const ops::OpSpec& spec = *ops::op_table()[op].spec;
-  if (cuda_->interpret()) {
-    check(op, call);  // "device memory" is host memory
-  } else {
-    // the values are checked on a host copy of the inputs
-    const size_t bytes = dtype_ == "float32" ? sizeof(float) : sizeof(double);
-    std::vector<std::vector<unsigned char>> host(spec.n_args);
-    ops::OpCall h = call;
-    for (int k = 0; k < spec.n_args; ++k) {
-      if (!call.in[k] || spec.args[k].kind == ops::kFrame) continue;
-      host[k].resize(bytes * ops::arg_values(spec.args[k], model_, call.n_ee) * (call.batched[k] ? call.B : 1));
-      cuda_->copy_to_host(host[k].data(), call.in[k], host[k].size());
-      h.in[k] = host[k].data();
-    }
-    check(op, h);
-  }
+  // the parameters here; the arrays' values in the kernels, which name a failing sample's argument
+  // from a copy of its inputs (CudaEngine): no copy to the host on the way in
+  check(op, call, false);
   resolve_and_dispatch(op, call, true);
 }
 

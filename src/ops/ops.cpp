@@ -207,7 +207,7 @@ int call_convention(const OpSpec& op, const OpCall& c) {
   return kPinocchioConvention;
 }
 
-template <typename T> void check_call(const Model& m, const OpSpec& op, const OpCall& c) {
+template <typename T> void check_call(const Model& m, const OpSpec& op, const OpCall& c, bool values) {
   if (op.model == kNoMimic && m.has_mimic())
     throw std::invalid_argument(std::string(op.name) + ": this operation applies to models without mimic joints; "
                                 "this model has mimic joints");
@@ -285,6 +285,7 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
     if ((needed >> o & 1u) && !c.out[o])
       throw std::invalid_argument(std::string(op.name) + ": output " + op.out[o].name +
                                   ": expected an array, got nothing (null)");
+  if (!values) return;
   const int convention = call_convention(op, c);
   for (int k = 0; k < op.n_args; ++k) {
     const ArgSpec& a = op.args[k];
@@ -320,8 +321,8 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
     }
   }
 }
-template void check_call<double>(const Model&, const OpSpec&, const OpCall&);
-template void check_call<float>(const Model&, const OpSpec&, const OpCall&);
+template void check_call<double>(const Model&, const OpSpec&, const OpCall&, bool);
+template void check_call<float>(const Model&, const OpSpec&, const OpCall&, bool);
 
 bool takes_names(const OpSpec& op) {
   for (int k = 0; k < op.n_args; ++k)

@@ -3,7 +3,9 @@
 // that CI, which has no GPU, runs every registered operation on every test
 // model against the CPU: float64 to 1e-12 relative of the serial loop,
 // float32 within the engine's bounds per family; device arrays in place; a
-// failed sample named; no device and no interpret mode: a clear error.
+// failed sample named; device arrays' values checked by the kernels, in the
+// host's words; the work in shared and in global memory; the launch shapes;
+// no device and no interpret mode: a clear error.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -11,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels.cuh"
 #include "registry_helpers.hpp"
 #include "test_models.hpp"
 
@@ -137,6 +140,119 @@ TEST(Cuda, ChecksAreTheCpus) {
     }
     EXPECT_NE(msg.find("q[2]"), std::string::npos) << msg;
   }
+}
+
+// the work slices in shared memory and in global memory give the same results (a model whose slices
+// fit a block's shared memory, and floating Atlas, whose full-layout slices do not)
+TEST(Cuda, WorkMemoriesAgree) {
+  for (const auto& [file, floating] : {std::pair<const char*, bool>{"iiwa.urdf", false}, {"atlas.urdf", true}}) {
+    const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/" + file, floating);
+    SCOPED_TRACE(file);
+    rbd::Handle serial(m);
+    const auto hp = interpret_handle(m, "float64");
+    EXPECT_EQ(hp->cuda()->work_memory(), "auto");
+    const long B = 9;  // (on the interpret device's 4 SMs: blocks of 3 samples in shared memory)
+    for (const ops::OpEntry& e : ops::op_table()) {
+      const ops::OpSpec& op = *e.spec;
+      SCOPED_TRACE(op.name);
+      if (op.failure == ops::kOscSingular) continue;  // (their failures: FailedSamplesAreNamed)
+      const Inputs in = make_inputs(m, op, B, 5, true);
+      const std::vector<double> ref = run<double>(serial, e.id, in);
+      for (const char* where : {"global", "shared"}) {
+        hp->cuda()->set_work_memory(where);
+        try {
+          EXPECT_LE(max_rel_err(run<double>(*hp, e.id, in), ref), on_device() ? 1e-8 : 1e-12) << where;
+        } catch (const std::invalid_argument& x) {  // a slice larger than a block's shared memory
+          EXPECT_STREQ(where, "shared");
+          EXPECT_NE(std::string(x.what()).find("exceeds a block's shared memory"), std::string::npos) << x.what();
+        }
+      }
+      hp->cuda()->set_work_memory("auto");
+    }
+  }
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
+}
+
+// the launch shapes on an H100 (132 SMs, 227 kB of shared memory per block)
+TEST(Cuda, LaunchShapes) {
+  using rbd::cuda::launch_shape;
+  const rbd::cuda::DeviceLimits h100{132, 227ul * 1024};
+  // a 30 kB slice: 7 fit a block. Few samples spread one or two per block over every SM ...
+  auto s = launch_shape(256, 30000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 2);
+  EXPECT_EQ(s.blocks, 128);
+  EXPECT_EQ(s.shared_bytes, 60000ul);
+  // ... many fill blocks with as many as fit
+  s = launch_shape(16384, 30000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 7);
+  EXPECT_EQ(s.blocks, (16384 + 6) / 7);
+  s = launch_shape(1, 30000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 1);
+  EXPECT_EQ(s.blocks, 1);
+  // slices that do not fit, or global memory asked for: warps, spread over the SMs, at most 128 threads
+  s = launch_shape(256, 250000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 32);
+  EXPECT_EQ(s.blocks, 8);
+  EXPECT_EQ(s.shared_bytes, 0ul);
+  s = launch_shape(256, 30000, h100, rbd::cuda::kWorkGlobal);
+  EXPECT_EQ(s.shared_bytes, 0ul);
+  EXPECT_EQ(s.threads, 32);
+  s = launch_shape(100000, 30000, h100, rbd::cuda::kWorkGlobal);
+  EXPECT_EQ(s.threads, 128);
+  EXPECT_EQ(s.blocks, (100000 + 127) / 128);
+  s = launch_shape(100000000, 250000, h100, rbd::cuda::kWorkAuto);  // the grid strides past kMaxBlocks
+  EXPECT_EQ(s.blocks, rbd::cuda::kMaxBlocks);
+  EXPECT_EQ(s.threads, 128);
+}
+
+// device arrays' values are checked by the kernels (no copy to the host on the way in), and a bad
+// sample's error is the host's, word for word: every array of every operation, each kind of bad value
+TEST(Cuda, DeviceChecksSayWhatHostChecksSay) {
+  if (on_device()) GTEST_SKIP() << "the host path here reads the same arrays as device memory: interpret mode";
+  const Model m = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/hyq.urdf", true);
+  const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
+  int compared = 0;
+  for (const ops::OpEntry& e : ops::op_table()) {
+    const ops::OpSpec& op = *e.spec;
+    SCOPED_TRACE(op.name);
+    const Inputs good = make_inputs(m, op, 4, 3, true);
+    for (int k = 0; k < op.n_args; ++k) {
+      const ops::ArgSpec& a = op.args[k];
+      if ((a.kind != ops::kArray && a.kind != ops::kOptionalArray) || good.arrays[k].empty()) continue;
+      SCOPED_TRACE(a.name);
+      const long n = ops::arg_values(a, m, good.call.n_ee);
+      // the bad values of this argument's check, at sample 2
+      std::vector<std::pair<long, double>> bad = {{0, NAN}, {n - 1, INFINITY}, {0, 1e20}};  // 1e20: float32's bound
+      if (a.check == ops::kWeights) bad.push_back({n - 1, -1.0});
+      if (a.check == ops::kUpperBound) bad.push_back({0, good.arrays[k - 1][2 * n] - 1});  // below its lower bound
+      if (a.check == ops::kConfiguration || a.check == ops::kMujocoConfiguration) {
+        bad.push_back({3, good.arrays[k][2 * n + 3] * 1.01});  // the base quaternion, not unit
+        bad.push_back({7, 2e12});                              // a revolute angle past kMaxAngle
+      }
+      for (const auto& [at, value] : bad) {
+        Inputs in = good;
+        in.arrays[k][2 * n + at] = value;
+        for (rbd::Handle* h : {p64.get(), p32.get()}) {
+          // (the value's error, or "" where the checks pass it: 1e20 in float64, which may then overflow)
+          auto message = [&](bool dev) {
+            try {
+              if (h->dtype() == "float32") run<float>(*h, e.id, in, ~0u, dev);
+              else run<double>(*h, e.id, in, ~0u, dev);
+            } catch (const std::invalid_argument& x) {
+              return std::string(x.what());
+            } catch (const std::runtime_error&) {
+            }
+            return std::string();
+          };
+          const std::string host = message(false), device = message(true);
+          EXPECT_EQ(device, host) << h->dtype() << ", value " << value << " at " << at;
+          compared += !host.empty();
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 500);  // (values a check lets through, 1e20 in float64, are not compared)
 }
 
 // without interpret mode the backend needs a device (and real kernels): a clear error where there is none

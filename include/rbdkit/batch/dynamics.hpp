@@ -20,6 +20,7 @@
 #include "rbdkit/algorithms/minv.hpp"
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/model/configuration.hpp"
+#include "rbdkit/model/input_bounds.hpp"
 #include "rbdkit/model/workspace.hpp"
 #include "rbdkit/parsers/model.hpp"
 
@@ -93,17 +94,8 @@ class WorkspaceCache {
 };
 
 // ---- input checks (throw std::invalid_argument)
-// Bounds on inputs: beyond kMaxInput the algorithms' products overflow (a
-// velocity enters squared, times inertias up to 1e15 and lengths up to 1e12,
-// ModelBuilder's limits), beyond kMaxAngle an angle has no precision left in
-// sin and cos (its float64 spacing exceeds 1e-4 rad). Results that still
-// come out non-finite throw std::runtime_error (check_result).
-constexpr double kMaxInput = 1e100;    // |q| (positions), |qd|, |qdd|, |tau|, |u|, |f_ext|, |gravity|, ...
-constexpr double kMaxAngle = 1e12;     // |q| of revolute and helical joints (rad)
-constexpr double kMaxTimeStep = 1e6;   // dt (s) of the integrators and the solver
-// the same bounds for float32 computations (float32's range and spacing)
-constexpr double kMaxInputF32 = 1e15;
-constexpr double kMaxAngleF32 = 1e4;
+// Bounds on inputs: kMaxInput, kMaxAngle, kMaxTimeStep and their float32
+// counterparts (model/input_bounds.hpp).
 // finite values of magnitude at most kMaxInput
 void check_finite(const double* x, long n, const char* arg);
 // finite values (kMaxInput, kMaxAngle for the angles of revolute and helical

@@ -25,6 +25,9 @@
 // stream; use_own_stream: a blocking stream of its own, the default) on the
 // device that was current when the engine was made, and a call returns when
 // they are done.
+// Device arrays' values are checked by the kernels (the same checks as the
+// host's ops::check_call, without copying them to the host first); a sample
+// that fails is copied back, to name the argument and the sample.
 // A sample whose kernel fails (a mass matrix that is not positive definite)
 // or whose outputs overflow makes the call throw, naming the samples: the
 // kernels write a status per sample, never a silent wrong number.
@@ -71,6 +74,12 @@ class CudaEngine {
   // samples per launch are bounded so that their work buffers take at most
   // `bytes` (default 1 GiB; 0: the default); larger batches take several launches
   void set_max_work_bytes(unsigned long bytes);
+  // where each sample's work (workspace and scratch) lives: "shared" (the
+  // block's shared memory, when a sample's fits), "global" (one device
+  // buffer), or "auto" (the default: shared when it fits; docs/cuda.md).
+  // The environment variable RBDKIT_CUDA_WORK sets it when an engine is made
+  void set_work_memory(const std::string& where);
+  std::string work_memory() const;
   // device bytes the engine holds (work buffers, copies, the model)
   unsigned long device_bytes() const;
 

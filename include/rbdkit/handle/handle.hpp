@@ -192,7 +192,9 @@ class Handle {
   void require(const char* operation) const;  // throws unless has(operation)
   // run's checked call, names resolved: serial loop, engine or CUDA engine (device_arrays: run_device's)
   void dispatch(int op, const ops::OpCall& call, bool device_arrays = false);
-  void check(int op, const ops::OpCall& call) const;  // the backend, the convention, the values
+  // the backend, the convention, the values (values = false: not the arrays' values, which the
+  // CUDA kernels check on device arrays)
+  void check(int op, const ops::OpCall& call, bool values = true) const;
   void resolve_and_dispatch(int op, const ops::OpCall& call, bool device_arrays);  // names resolved, then dispatch
   void run_typed(int op, const ops::OpCall& call);  // run() for the typed methods (a float64 handle)
   void check_rows(const BatchMatrix& a, int width, const char* name, long B) const;
