@@ -143,6 +143,7 @@ def main():
                     help="skip a B whose inputs and outputs take more than this (GB): the Euler step Hessian "
                          "of floating Atlas is 6.7 MB per knot point")
     ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
+    ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
                     help="the device arrays of the resident column")
     ap.add_argument("--work-memory", action="store_true",
@@ -159,6 +160,13 @@ def main():
             ap.error(f"--robots: unknown {', '.join(unknown)}; expected some of {', '.join(known)}")
         robots = [known[n] for n in a.robots.split(",")]
     batches = (1, 256, 4096) if a.quick else BATCHES
+    ops = OPS
+    if a.ops:
+        known_ops = {o[1] for o in OPS}
+        unknown = [n for n in a.ops.split(",") if n not in known_ops]
+        if unknown:
+            ap.error(f"--ops: unknown {', '.join(unknown)}; expected some of {', '.join(sorted(known_ops))}")
+        ops = [o for o in OPS if o[1] in a.ops.split(",")]
     dev = device_module(a.arrays)
     warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias
     nosync = lambda: None  # noqa: E731
@@ -187,7 +195,7 @@ def main():
                 extra = " global | shared |" if a.work_memory else ""
                 out(f"| robot | dtype | op | B | resident | host | cpu | cpu / resident |{extra}")
                 out("|---|---|---|---:|---:|---:|---:|---:|" + ("---:|---:|" if a.work_memory else ""))
-            for label, op in OPS:
+            for label, op in ops:
                 args1, kw1 = arguments(cpu, op, 1, np.random.default_rng(0))
                 per_sample = nbytes(getattr(cpu, op)(*args1, **kw1)) + sum(x.nbytes for x in args1)
                 for B in batches:

@@ -54,14 +54,15 @@ step "C++ CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 build/gpu/test
   --gtest_filter='*Cuda*'
 step "C++ kernel check (cuda/kernel_check.cu)" build/gpu/cuda_kernel_check robots
 
-# ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global memory,
-# launch errors); racecheck (shared-memory races: none possible in the one-sample-per-thread
-# kernels, there for the cooperative kernels that will share memory within a block)
+# ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global and shared
+# memory, launch errors); racecheck (shared-memory races: each thread's work slice must not overlap
+# another's, and the cooperative kernels will share memory within a block)
 if command -v compute-sanitizer >/dev/null; then
   for tool in memcheck racecheck; do
     step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 timeout "${SANITIZER_TIMEOUT:-300}" \
       compute-sanitizer --tool "$tool" \
-      --error-exitcode 1 build/gpu/tests/cpp/rbdkit_tests --gtest_filter='Models/CudaModels.*/iiwa_fixed'
+      --error-exitcode 1 build/gpu/tests/cpp/rbdkit_tests \
+      --gtest_filter='Models/CudaModels.*/iiwa_fixed:Cuda.SharedBlocksOfManySamples'
   done
 else
   summary+=("| compute-sanitizer | not found |")

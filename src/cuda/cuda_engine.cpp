@@ -17,6 +17,36 @@
 
 namespace rbd {
 
+namespace cuda {
+
+// The launch of B samples of `work_bytes` each (the same for every operation of that size;
+// docs/cuda.md, "Kernel layout", with the H100 measurements behind it):
+//   work in shared memory while the batch runs in at most three waves of samples resident with
+//     their slices there (fit slices per block, a block per SM: B <= 3 x SMs x fit), else in global
+//     memory, whose residency only registers bound: past three waves, the waves cost more than
+//     global memory's slower accesses (measured: docs/gpu.md, 2026-11-26 on an H100);
+//   threads per block: the samples spread over the SMs first (a block per SM until every SM has
+//     one), then as many as fit in shared memory (at most 32), or warps up to 128 in global memory;
+//   blocks: one thread per sample, at most kMaxBlocks (then the grid strides)
+LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode) {
+  const long sms = d.multiprocessors > 0 ? d.multiprocessors : 1;
+  const long per_sm = (B + sms - 1) / sms;  // samples per SM when every SM has a block
+  const long fit = work_bytes ? static_cast<long>(d.shared_bytes / work_bytes) : 0;
+  const long resident = sms * std::min(fit, 32L);  // samples in shared memory at once
+  const bool shared = mode == kWorkShared || (mode == kWorkAuto && fit >= 1 && B <= 3 * resident);
+  long threads;
+  if (shared) {
+    threads = std::min(std::min(per_sm, 32L), fit);
+    threads = std::max(threads, 1L);  // (kWorkShared with a slice larger than a block's: the engine refuses it)
+  } else {
+    threads = std::min(std::max((per_sm + 31) / 32 * 32, 32L), static_cast<long>(kThreadsPerBlock));
+  }
+  const long blocks = std::min(std::max((B + threads - 1) / threads, 1L), kMaxBlocks);
+  return {blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul};
+}
+
+}  // namespace cuda
+
 namespace {
 
 constexpr unsigned long kMaxWorkBytes = 1ul << 30;  // default, per launch: samples x (workspace + scratch)
@@ -51,38 +81,47 @@ struct CudaEngine::Impl {
   std::unique_ptr<cuda::Device> dev;
   void* own_stream = nullptr;
   void* stream = nullptr;
-  Buffer bodies, work, status, io;
+  Buffer bodies, work, status, io, flag;
   unsigned long max_work_bytes = kMaxWorkBytes;
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
   cuda::DeviceLimits limits{};
   std::mutex call;
   std::vector<int> status_host;
+  int* failed_host = nullptr;  // pinned: the flag samples set when they fail (DeviceCall::failed)
+  int call_id = 0;
 
   Impl(const Model& m, const std::string& d, bool interp) : model(m), dtype(d), interpret(interp) {
     if (d != "float64" && d != "float32")
       throw std::invalid_argument("dtype: expected 'float64' or 'float32', got '" + d + "'");
     dev = interp ? cuda::make_interpret_device() : cuda::make_cuda_device();
-    for (Buffer* b : {&bodies, &work, &status, &io}) b->dev = dev.get();
+    for (Buffer* b : {&bodies, &work, &status, &io, &flag}) b->dev = dev.get();
     own_stream = dev->create_stream();
     stream = own_stream;
     limits = dev->limits();
-    work_memory = work_memory_from_env();
-    try {  // the model's bodies in the engine's scalar, uploaded once
+    try {
+      work_memory = work_memory_from_env();
+      failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
+      // the model's bodies in the engine's scalar, uploaded once; the failure flag, cleared once
       if (d == "float64") upload_bodies(model.bodies_as<double>());
       else upload_bodies(model.bodies_as<float>());
     } catch (...) {
+      if (failed_host) dev->release_host(failed_host);
       dev->destroy_stream(own_stream);
       own_stream = nullptr;
       throw;
     }
   }
   ~Impl() {
+    if (failed_host) dev->release_host(failed_host);
     if (own_stream) dev->destroy_stream(own_stream);
   }
   template <typename T> void upload_bodies(const std::vector<BodyDesc<T>>& b) {
     const size_t n = sizeof(BodyDesc<T>) * b.size();
     bodies.reserve(n);
     if (n) dev->to_device(bodies.p, b.data(), n, stream);
+    *failed_host = 0;
+    flag.reserve(sizeof(int));
+    dev->to_device(flag.p, failed_host, sizeof(int), stream);
     dev->synchronize(stream);
   }
 
@@ -170,6 +209,8 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   status.reserve(sizeof(int) * B);
   dc.work = dc.work_shared ? nullptr : static_cast<unsigned char*>(work.p);
   int* status_d = static_cast<int*>(status.p);
+  dc.failed = static_cast<int*>(flag.p);
+  dc.call_id = call_id = call_id == 0x7fffffff ? 1 : call_id + 1;  // (never 0, the flag's first value)
   for (long s0 = 0; s0 < B; s0 += chunk) {
     cuda::DeviceCall<T> part = dc;
     part.B = std::min(chunk, B - s0);
@@ -181,10 +222,14 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     dev->launch(op_id, part, part.B == B ? whole : cuda::launch_shape(part.B, dc.work_bytes, limits, work_memory),
                 stream);
   }
-  status_host.resize(static_cast<size_t>(B));
-  dev->to_host(status_host.data(), status_d, sizeof(int) * B, stream);
+  // the flag (one int, to pinned memory), the outputs of host arrays; the statuses only when the flag says
+  dev->to_host(failed_host, dc.failed, sizeof(int), stream);
   for (int o = 0; o < op.n_out; ++o)
     if (c.out[o] && !device_arrays) dev->to_host(c.out[o], dc.out[o], sizeof(T) * out_values[o] * B, stream);
+  dev->synchronize(stream);
+  if (*failed_host != dc.call_id) return;
+  status_host.resize(static_cast<size_t>(B));
+  dev->to_host(status_host.data(), status_d, sizeof(int) * B, stream);
   dev->synchronize(stream);
 
   // the samples that failed: inputs that fail the value checks first, else the first status seen
@@ -310,7 +355,7 @@ std::string CudaEngine::work_memory() const {
   return w == cuda::kWorkGlobal ? "global" : w == cuda::kWorkShared ? "shared" : "auto";
 }
 unsigned long CudaEngine::device_bytes() const {
-  return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes;
+  return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes + impl_->flag.bytes;
 }
 
 void CudaEngine::copy_to_host(void* dst, const void* src, size_t bytes) {

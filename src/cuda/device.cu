@@ -44,6 +44,12 @@ struct CudaDevice : Device {
     return p;
   }
   void release(void* p) override { cudaFree(p); }
+  void* alloc_host(size_t bytes) override {
+    void* p = nullptr;
+    check(cudaMallocHost(&p, bytes ? bytes : 1), ("cudaMallocHost of " + std::to_string(bytes) + " bytes").c_str());
+    return p;
+  }
+  void release_host(void* p) override { cudaFreeHost(p); }
   void to_device(void* dst, const void* src, size_t bytes, void* s) override {
     check(cudaMemcpyAsync(dst, src, bytes, cudaMemcpyHostToDevice, static_cast<cudaStream_t>(s)), "copy to device");
   }

@@ -21,6 +21,9 @@ struct Device {
   virtual DeviceLimits limits() const = 0;
   virtual void* alloc(size_t bytes) = 0;  // throws std::runtime_error when out of memory
   virtual void release(void* p) = 0;
+  // page-locked host memory (copies to it are asynchronous DMA), freed by release_host
+  virtual void* alloc_host(size_t bytes) = 0;
+  virtual void release_host(void* p) = 0;
   virtual void to_device(void* dst, const void* src, size_t bytes, void* stream) = 0;
   virtual void to_host(void* dst, const void* src, size_t bytes, void* stream) = 0;
   virtual void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* stream) = 0;
@@ -35,6 +38,9 @@ struct Device {
   // makes the engine's device the calling thread's current one (before any call)
   virtual void activate() = 0;
 };
+
+// the launch of B samples of `work_bytes` each on a device (src/cuda/cuda_engine.cpp)
+LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode);
 
 std::unique_ptr<Device> make_interpret_device();
 // the CUDA runtime's device 0; throws std::runtime_error naming what is missing

@@ -24,6 +24,8 @@
 // samples.
 #pragma once
 
+#include <utility>
+
 #include "rbdkit/model/input_bounds.hpp"
 #include "rbdkit/ops/registry.hpp"
 
@@ -59,6 +61,8 @@ template <typename T> struct DeviceCall {
   unsigned char* work;             // (B x work_bytes), or null when the work is in shared memory
   int work_shared;                 // 1: each thread's work slice is in its block's shared memory
   int* status;                     // (B): SampleStatus
+  int* failed;                     // (1): set to call_id by a sample whose status is not kSampleOk
+  int call_id;                     // this call's (the host reads one int, and the statuses only when set)
 };
 
 // whether x[0..n) are all finite (x - x is 0 only for a finite x)
@@ -72,7 +76,7 @@ template <typename T> RBD_HD bool all_finite(const T* x, long n) {
 // double as there: finite values of magnitude at most the dtype's bound, non-negative weights,
 // ordered bounds, configurations with bounded angles and unit quaternions. For device arrays,
 // which the host cannot read without a copy; a sample that fails is not computed, and the host
-// words the error from a copy of the inputs (CudaEngine::Impl::fail)
+// words the error from a copy of the inputs (CudaEngine::Impl::fail_inputs)
 template <typename T> RBD_HD constexpr double input_bound() { return sizeof(T) == 4 ? kMaxInputF32 : kMaxInput; }
 template <typename T> RBD_HD constexpr double angle_bound() { return sizeof(T) == 4 ? kMaxAngleF32 : kMaxAngle; }
 template <typename T> RBD_HD bool bounded_values(const T* x, long n) {
@@ -95,36 +99,41 @@ template <typename T> RBD_HD bool configuration_ok(const ModelView<T>& m, const 
   }
   return ok;
 }
-template <typename Op, typename T> RBD_HD bool inputs_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
-  bool ok = true;
-  for (int k = 0; k < Op::spec.n_args; ++k) {
-    const ops::ArgSpec& a = Op::spec.args[k];
-    if ((a.kind != ops::kArray && a.kind != ops::kOptionalArray) || !c.in[k]) continue;
-    const T* x = c.in[k] + s * c.in_stride[k];
-    const long n = c.in_values[k];
-    switch (a.check) {
-      case ops::kFiniteValues: ok &= bounded_values(x, n); break;
-      case ops::kWeights:
-        ok &= bounded_values(x, n);
-        for (long j = 0; j < n; ++j) ok &= x[j] >= T(0);
-        break;
-      case ops::kLowerBound: break;  // with its upper bound, the argument after it
-      case ops::kUpperBound: {
-        const T* lo = c.in[k - 1] + s * c.in_stride[k - 1];
-        for (long j = 0; j < n; ++j) {
-          const double l = lo[j], h = x[j];  // each finite within the bound or infinite; l < h; no NaN
-          ok &= (fabs(l) <= input_bound<T>() || isinf(l)) && (fabs(h) <= input_bound<T>() || isinf(h));
-          ok &= l < h && l != INFINITY && h != -INFINITY;
-        }
-        break;
+// argument K of Op (its kind and check read at compile time: the spec is host data)
+template <typename Op, int K, typename T> RBD_HD bool arg_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
+  constexpr ops::ArgKind kind = Op::spec.args[K].kind;
+  constexpr ops::ValueCheck check = Op::spec.args[K].check;
+  if constexpr (kind != ops::kArray && kind != ops::kOptionalArray) {
+    return true;
+  } else {
+    if (!c.in[K]) return true;
+    const T* x = c.in[K] + s * c.in_stride[K];
+    const long n = c.in_values[K];
+    bool ok = true;
+    if constexpr (check == ops::kFiniteValues) {
+      ok = bounded_values(x, n);
+    } else if constexpr (check == ops::kWeights) {
+      ok = bounded_values(x, n);
+      for (long j = 0; j < n; ++j) ok &= x[j] >= T(0);
+    } else if constexpr (check == ops::kUpperBound && K > 0) {  // with its lower bound, the argument before
+      const T* lo = c.in[K - 1] + s * c.in_stride[K - 1];
+      for (long j = 0; j < n; ++j) {
+        const double l = lo[j], h = x[j];  // each finite within the bound or infinite; l < h; no NaN
+        ok &= (fabs(l) <= input_bound<T>() || isinf(l)) && (fabs(h) <= input_bound<T>() || isinf(h));
+        ok &= l < h && l != INFINITY && h != -INFINITY;
       }
-      case ops::kConfiguration:
-      case ops::kMujocoConfiguration:  // (a quaternion's norm is the same in either layout)
-        ok &= configuration_ok(m, x) && bounded_values(x, n);
-        break;
+    } else if constexpr (check == ops::kConfiguration || check == ops::kMujocoConfiguration) {
+      ok = configuration_ok(m, x) && bounded_values(x, n);  // (a quaternion's norm is the same in either layout)
     }
+    return ok;  // (kLowerBound: with its upper bound)
   }
-  return ok;
+}
+template <typename Op, typename T, int... K>
+RBD_HD bool args_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s, std::integer_sequence<int, K...>) {
+  return (arg_ok<Op, K>(c, m, s) & ... & true);
+}
+template <typename Op, typename T> RBD_HD bool inputs_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s) {
+  return args_ok<Op>(c, m, s, std::make_integer_sequence<int, Op::spec.n_args>{});
 }
 
 // sample s of Op on model m (c.model, its bodies as the kernel reads them)
@@ -136,6 +145,7 @@ RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s, uns
   constexpr bool finite_outputs = Op::spec.outputs == ops::kFiniteOutputs;
   if (c.check_inputs && !inputs_ok<Op>(c, m, s)) {
     c.status[s] = kSampleBadInput;
+    *c.failed = c.call_id;
     return;
   }
   Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
@@ -157,6 +167,7 @@ RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s, uns
       if (a.out[o] && !all_finite(a.out[o], c.out_values[o])) status = kSampleNonFinite + o;
   }
   c.status[s] = status;
+  if (status != kSampleOk) *c.failed = c.call_id;  // (every failing sample writes the same value)
 }
 
 // the samples one thread owns: first, first + stride, ... below B; `slot`:
@@ -209,33 +220,10 @@ template <typename Phase> void emulate_launch(LaunchShape shape, Phase&& phase) 
   delete[] shared;
 }
 
-// the launch of B samples of `work_bytes` each (the shape is the same for
-// every operation of that size; docs/cuda.md, "Kernel layout"):
-//   threads per block: spread the samples over the multiprocessors first
-//     (a block per SM until every SM has one), then up to 128 per block;
-//   work in shared memory when at least one sample's slice fits a block's
-//     (a block then holds as many samples as fit, at most 32), else global;
-//   blocks: one thread per sample, at most kMaxBlocks (then the grid strides)
+// the most threads per block, and blocks per launch (past it the grid strides);
+// the shape of a launch: launch_shape (src/cuda/cuda_engine.cpp)
 constexpr int kThreadsPerBlock = 128;
 constexpr long kMaxBlocks = 65535;
-inline LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode) {
-  const long sms = d.multiprocessors > 0 ? d.multiprocessors : 1;
-  const long per_sm = (B + sms - 1) / sms;  // samples per SM when every SM has a block
-  const long fit = work_bytes ? static_cast<long>(d.shared_bytes / work_bytes) : 0;
-  const bool shared = mode == kWorkShared || (mode == kWorkAuto && fit >= 1);
-  long threads;
-  if (shared) {
-    threads = per_sm < 32 ? per_sm : 32;
-    if (threads > fit) threads = fit;
-    if (threads < 1) threads = 1;  // (kWorkShared with a slice larger than a block's: the launch fails, named)
-  } else {
-    threads = (per_sm + 31) / 32 * 32;
-    threads = threads < 32 ? 32 : threads > kThreadsPerBlock ? kThreadsPerBlock : threads;
-  }
-  long blocks = (B + threads - 1) / threads;
-  if (blocks > kMaxBlocks) blocks = kMaxBlocks;
-  return {blocks < 1 ? 1 : blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul};
-}
 
 // Op's launch in interpret mode: the kernel's body for every (block, thread)
 template <typename Op, typename T> void interpret_op(const DeviceCall<T>& c, LaunchShape shape) {

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "kernels.cuh"
+#include "device.hpp"
 #include "registry_helpers.hpp"
 #include "test_models.hpp"
 
@@ -174,23 +174,59 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
+// a batch large enough that blocks hold several samples' work in shared memory on any device (on an
+// H100, 600 samples are 5 per block, as many as fit in interpret mode; scripts/gpu-check.sh runs this under compute-sanitizer's racecheck)
+TEST(Cuda, SharedBlocksOfManySamples) {
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  rbd::Handle serial(iiwa);
+  const auto hp = interpret_handle(iiwa, "float64");
+  hp->cuda()->set_work_memory("shared");  // (auto would choose global memory on the interpret device's 4 SMs)
+  for (const char* name : {"inverse_dynamics", "forward_dynamics_gradient", "integrator_gradient"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    const Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 600, 8, true);
+    EXPECT_LE(max_rel_err(run<double>(*hp, id, in), run<double>(serial, id, in)), on_device() ? 1e-8 : 1e-12);
+  }
+}
+
 // the launch shapes on an H100 (132 SMs, 227 kB of shared memory per block)
 TEST(Cuda, LaunchShapes) {
   using rbd::cuda::launch_shape;
   const rbd::cuda::DeviceLimits h100{132, 227ul * 1024};
-  // a 30 kB slice: 7 fit a block. Few samples spread one or two per block over every SM ...
+  // a 30 kB slice: 7 fit a block, 924 samples on the whole GPU at once. Up to three such waves, the work
+  // in shared memory, the samples spread one or two per block over every SM, then as many as fit
   auto s = launch_shape(256, 30000, h100, rbd::cuda::kWorkAuto);
   EXPECT_EQ(s.threads, 2);
   EXPECT_EQ(s.blocks, 128);
   EXPECT_EQ(s.shared_bytes, 60000ul);
-  // ... many fill blocks with as many as fit
-  s = launch_shape(16384, 30000, h100, rbd::cuda::kWorkAuto);
+  s = launch_shape(900, 30000, h100, rbd::cuda::kWorkAuto);
   EXPECT_EQ(s.threads, 7);
-  EXPECT_EQ(s.blocks, (16384 + 6) / 7);
+  EXPECT_EQ(s.blocks, (900 + 6) / 7);
+  EXPECT_EQ(s.shared_bytes, 210000ul);
+  s = launch_shape(2700, 30000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 7);
+  EXPECT_EQ(s.blocks, (2700 + 6) / 7);
+  EXPECT_EQ(s.shared_bytes, 210000ul);
   s = launch_shape(1, 30000, h100, rbd::cuda::kWorkAuto);
   EXPECT_EQ(s.threads, 1);
   EXPECT_EQ(s.blocks, 1);
-  // slices that do not fit, or global memory asked for: warps, spread over the SMs, at most 128 threads
+  // a 120 kB slice (floating Atlas's ∇FD in float32): one per block, 132 at once, three waves of them
+  s = launch_shape(256, 120000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.threads, 1);
+  EXPECT_EQ(s.blocks, 256);
+  EXPECT_EQ(s.shared_bytes, 120000ul);
+  EXPECT_EQ(launch_shape(396, 120000, h100, rbd::cuda::kWorkAuto).shared_bytes, 120000ul);
+  EXPECT_EQ(launch_shape(397, 120000, h100, rbd::cuda::kWorkAuto).shared_bytes, 0ul);
+  // more samples than three waves in shared memory: global memory, warps, spread, at most 128 threads
+  s = launch_shape(16384, 30000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.shared_bytes, 0ul);
+  EXPECT_EQ(s.threads, 128);
+  EXPECT_EQ(s.blocks, 128);
+  // ... unless shared memory is asked for: blocks of as many as fit
+  s = launch_shape(16384, 30000, h100, rbd::cuda::kWorkShared);
+  EXPECT_EQ(s.threads, 7);
+  EXPECT_EQ(s.blocks, (16384 + 6) / 7);
+  // slices that do not fit a block, or global memory asked for
   s = launch_shape(256, 250000, h100, rbd::cuda::kWorkAuto);
   EXPECT_EQ(s.threads, 32);
   EXPECT_EQ(s.blocks, 8);
@@ -198,9 +234,6 @@ TEST(Cuda, LaunchShapes) {
   s = launch_shape(256, 30000, h100, rbd::cuda::kWorkGlobal);
   EXPECT_EQ(s.shared_bytes, 0ul);
   EXPECT_EQ(s.threads, 32);
-  s = launch_shape(100000, 30000, h100, rbd::cuda::kWorkGlobal);
-  EXPECT_EQ(s.threads, 128);
-  EXPECT_EQ(s.blocks, (100000 + 127) / 128);
   s = launch_shape(100000000, 250000, h100, rbd::cuda::kWorkAuto);  // the grid strides past kMaxBlocks
   EXPECT_EQ(s.blocks, rbd::cuda::kMaxBlocks);
   EXPECT_EQ(s.threads, 128);
