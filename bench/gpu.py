@@ -10,8 +10,8 @@ rk4 step gradient and the Euler step Hessian; float32 and float64; B in
   cpu        the CPU engine (rbdkit.Handle(backend="cpu"), all cores)
 With --work-memory: two more resident columns, each sample's work (workspace
 and scratch) forced into global memory and into the block's shared memory
-(RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits;
-docs/cuda.md).
+(RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits and the
+batch runs in at most three waves there; docs/cuda.md).
 
 With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
 N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:
@@ -96,6 +96,19 @@ def per_call(f, args, kwargs, sync, budget):
 def nbytes(result):
     """bytes of an operation's result (an array or a tuple of arrays)"""
     return sum(np.asarray(r).nbytes for r in result) if isinstance(result, tuple) else np.asarray(result).nbytes
+
+
+def cuda_handle(model, dtype, work):
+    """a CUDA handle made with RBDKIT_CUDA_WORK=work (the caller's value restored after)"""
+    before = os.environ.get("RBDKIT_CUDA_WORK")
+    os.environ["RBDKIT_CUDA_WORK"] = work
+    try:
+        return rbdkit.Handle(model, backend="cuda", dtype=dtype)
+    finally:
+        if before is None:
+            del os.environ["RBDKIT_CUDA_WORK"]
+        else:
+            os.environ["RBDKIT_CUDA_WORK"] = before
 
 
 def ilqr_table(out, dev, budget, K=64, N=100):
@@ -184,9 +197,7 @@ def main():
             cpu = rbdkit.Handle(model, backend="cpu", dtype=dtype)
             forced = {}  # --work-memory: handles with the work forced into one memory
             for where in ("global", "shared") if a.work_memory and dev else ():
-                os.environ["RBDKIT_CUDA_WORK"] = where
-                forced[where] = rbdkit.Handle(model, backend="cuda", dtype=dtype)
-                del os.environ["RBDKIT_CUDA_WORK"]
+                forced[where] = cuda_handle(model, dtype, where)
             if gpu is None:
                 gpu = cu.device
                 out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
@@ -202,7 +213,7 @@ def main():
                     name = robot + ("_floating" if floating else "")
                     if per_sample * B > a.max_gb * 1e9:
                         out(f"| {name} | {dtype} | {label} | {B} | - | - | - | over --max-gb "
-                            f"({per_sample * B / 1e9:.1f} GB) |")
+                            f"({per_sample * B / 1e9:.1f} GB) |" + (" - | - |" if a.work_memory else ""))
                         continue
                     rng = np.random.default_rng(0)
                     args, kw = arguments(cu, op, B, rng)

@@ -42,7 +42,7 @@ LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkM
     threads = std::min(std::max((per_sm + 31) / 32 * 32, 32L), static_cast<long>(kThreadsPerBlock));
   }
   const long blocks = std::min(std::max((B + threads - 1) / threads, 1L), kMaxBlocks);
-  return {blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul};
+  return {blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul, d.shared_bytes};
 }
 
 }  // namespace cuda
@@ -219,8 +219,8 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     for (int o = 0; o < op.n_out; ++o)
       if (part.out[o]) part.out[o] += s0 * out_values[o];
     part.status = status_d + s0;
-    dev->launch(op_id, part, part.B == B ? whole : cuda::launch_shape(part.B, dc.work_bytes, limits, work_memory),
-                stream);
+    dev->launch(op_id, part, part.B == B ? whole : cuda::launch_shape(part.B, dc.work_bytes, limits, cuda::kWorkGlobal),
+                stream);  // (a chunk: global memory, as the whole call)
   }
   // the flag (one int, to pinned memory), the outputs of host arrays; the statuses only when the flag says
   dev->to_host(failed_host, dc.failed, sizeof(int), stream);
@@ -351,6 +351,7 @@ void CudaEngine::set_work_memory(const std::string& where) {
   impl_->work_memory = w;
 }
 std::string CudaEngine::work_memory() const {
+  std::lock_guard<std::mutex> lk(impl_->call);
   const cuda::WorkMemory w = impl_->work_memory;
   return w == cuda::kWorkGlobal ? "global" : w == cuda::kWorkShared ? "shared" : "auto";
 }

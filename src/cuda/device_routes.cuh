@@ -5,6 +5,9 @@
 
 #include <cuda_runtime.h>
 
+#include <stdexcept>
+#include <string>
+
 #include "device.hpp"
 
 namespace rbd {
@@ -12,14 +15,13 @@ namespace cuda {
 
 template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
   if (shape.shared_bytes > 48 * 1024) {
-    // past the default 48 kB, a kernel's dynamic shared memory must be allowed per kernel (the
-    // launch then fails, and says so, if the device has less)
-    static unsigned long allowed = 0;  // (one device per process: the engine's)
-    if (shape.shared_bytes > allowed) {
-      cudaFuncSetAttribute(op_kernel<Op, T>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                           static_cast<int>(shape.shared_bytes));
-      allowed = shape.shared_bytes;
-    }
+    // past the default 48 kB, a kernel's dynamic shared memory must be allowed, per kernel and
+    // device: always to the device's maximum, so that engines on other threads never lower it
+    const cudaError_t e = cudaFuncSetAttribute(op_kernel<Op, T>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                               static_cast<int>(shape.shared_limit));
+    if (e != cudaSuccess)
+      throw std::runtime_error(std::string("backend='cuda': allowing ") + std::to_string(shape.shared_bytes) +
+                               " bytes of shared memory per block: " + cudaGetErrorString(e));
   }
   op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, shape.shared_bytes,
                      static_cast<cudaStream_t>(stream)>>>(c, c.model.body);

@@ -93,7 +93,14 @@ template <typename T> RBD_HD bool configuration_ok(const ModelView<T>& m, const 
     if (b.type == kFree || b.type == kSpherical) {
       const T* h = q + b.q_idx + (b.type == kFree ? 3 : 0);
       double n2 = 0;
-      for (int k = 0; k < 4; ++k) n2 += static_cast<double>(h[k]) * static_cast<double>(h[k]);
+      for (int k = 0; k < 4; ++k) {
+        const double x = h[k];
+#if defined(__CUDA_ARCH__)
+        n2 = __dadd_rn(n2, __dmul_rn(x, x));  // rounded as the host's check (no fused multiply-add)
+#else
+        n2 += x * x;
+#endif
+      }
       ok &= fabs(sqrt(n2) - 1.0) <= 1e-6;
     }
   }
@@ -205,6 +212,7 @@ struct LaunchShape {
   long blocks;
   int threads;
   unsigned long shared_bytes;  // per block; 0: the work slices are in global memory
+  unsigned long shared_limit;  // the device's (DeviceLimits::shared_bytes): what a kernel is allowed
 };
 
 // the emulated launch (interpret mode): grid x block threads, run serially;

@@ -96,10 +96,24 @@ TEST(Cuda, ChunkedLaunchesEqualOne) {
     Inputs in = make_inputs(hyq, *ops::op_table()[id].spec, 10, 4, true);
     in.call.batched[1] = false;  // one unbatched input, broadcast over the chunks
     const std::vector<double> ref = run<double>(serial, id, in);
+    hp->cuda()->set_work_memory("global");  // (chunks are of the global work buffer)
     hp->cuda()->set_max_work_bytes(300000);  // at most 300 kB of work buffer per launch: a few samples
     const std::vector<double> got = run<double>(*hp, id, in);
-    hp->cuda()->set_max_work_bytes(0);
     EXPECT_LE(max_rel_err(got, ref), on_device() ? 1e-8 : 1e-12);
+    // a bad value in a later chunk: the failure flag and the statuses span the chunks
+    if (!on_device()) {
+      Inputs bad = in;
+      bad.arrays[0][8 * hyq.nq + 8] = NAN;
+      std::string msg;
+      try {
+        run<double>(*hp, id, bad, ~0u, true);
+      } catch (const std::invalid_argument& e) {
+        msg = e.what();
+      }
+      EXPECT_NE(msg.find("q[8]"), std::string::npos) << msg;
+    }
+    hp->cuda()->set_max_work_bytes(0);
+    hp->cuda()->set_work_memory("auto");
   }
 }
 
@@ -263,29 +277,32 @@ TEST(Cuda, DeviceChecksSayWhatHostChecksSay) {
         bad.push_back({3, good.arrays[k][2 * n + 3] * 1.01});  // the base quaternion, not unit
         bad.push_back({7, 2e12});                              // a revolute angle past kMaxAngle
       }
-      for (const auto& [at, value] : bad) {
-        Inputs in = good;
-        in.arrays[k][2 * n + at] = value;
-        for (rbd::Handle* h : {p64.get(), p32.get()}) {
-          // (the value's error, or "" where the checks pass it: 1e20 in float64, which may then overflow)
-          auto message = [&](bool dev) {
-            try {
-              if (h->dtype() == "float32") run<float>(*h, e.id, in, ~0u, dev);
-              else run<double>(*h, e.id, in, ~0u, dev);
-            } catch (const std::invalid_argument& x) {
-              return std::string(x.what());
-            } catch (const std::runtime_error&) {
-            }
-            return std::string();
-          };
-          const std::string host = message(false), device = message(true);
-          EXPECT_EQ(device, host) << h->dtype() << ", value " << value << " at " << at;
-          compared += !host.empty();
+      for (const auto& [at, value] : bad)
+        for (bool batched : {true, false}) {  // unbatched: sample 2's values for every sample (stride 0)
+          Inputs in = good;
+          in.arrays[k][2 * n + at] = value;
+          if (!batched) in.call.batched[k] = false, in.first[k] = 2;
+          for (rbd::Handle* h : {p64.get(), p32.get()}) {
+            // (the value's error, or "" where the checks pass it: 1e20 in float64, which may then overflow)
+            auto message = [&](bool dev) {
+              try {
+                if (h->dtype() == "float32") run<float>(*h, e.id, in, ~0u, dev);
+                else run<double>(*h, e.id, in, ~0u, dev);
+              } catch (const std::invalid_argument& x) {
+                return std::string(x.what());
+              } catch (const std::runtime_error&) {
+              }
+              return std::string();
+            };
+            const std::string host = message(false), device = message(true);
+            EXPECT_EQ(device, host) << h->dtype() << ", value " << value << " at " << at
+                                    << (batched ? "" : ", unbatched");
+            compared += !host.empty();
+          }
         }
-      }
     }
   }
-  EXPECT_GT(compared, 500);  // (values a check lets through, 1e20 in float64, are not compared)
+  EXPECT_GT(compared, 1000);  // (values a check lets through, 1e20 in float64, are not compared)
 }
 
 // without interpret mode the backend needs a device (and real kernels): a clear error where there is none

@@ -76,7 +76,8 @@ class CudaEngine {
   void set_max_work_bytes(unsigned long bytes);
   // where each sample's work (workspace and scratch) lives: "shared" (the
   // block's shared memory, when a sample's fits), "global" (one device
-  // buffer), or "auto" (the default: shared when it fits; docs/cuda.md).
+  // buffer), or "auto" (the default: shared when it fits and the batch runs
+  // in at most three waves there; docs/cuda.md, "Kernel layout").
   // The environment variable RBDKIT_CUDA_WORK sets it when an engine is made
   void set_work_memory(const std::string& where);
   std::string work_memory() const;

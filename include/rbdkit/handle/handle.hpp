@@ -116,7 +116,8 @@ class Handle {
   void run(int op, const ops::OpCall& call);
   // the same on device arrays (a Backend::CUDA handle): read and written in
   // place, on the handle's stream (cuda()->set_stream). The values are checked
-  // as run() checks them, from a host copy of the inputs on a real device
+  // as run() checks them, by the kernels (a failing sample's inputs are then
+  // copied to the host to word the same error)
   void run_device(int op, const ops::OpCall& call);
   bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
 

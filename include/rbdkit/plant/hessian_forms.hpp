@@ -35,23 +35,14 @@ enum HessianForm : int {
 
 // out = [x, y] for two tangent vectors of one joint's configuration block (d = the joint's nv)
 template <typename S> RBD_HD void joint_bracket(int type, int convention, const S* x, const S* y, S* out) {
-  auto cross3 = [](const S* a, const S* b, S* o) {
-    o[0] = a[1] * b[2] - a[2] * b[1];
-    o[1] = a[2] * b[0] - a[0] * b[2];
-    o[2] = a[0] * b[1] - a[1] * b[0];
-  };
-  if (type == kSpherical) {
-    cross3(x, y, out);
-  } else if (convention == kMujocoConvention) {  // free: [p; θ], the position additive
-    out[0] = out[1] = out[2] = S(0);
-    cross3(x + 3, y + 3, out + 3);
-  } else {  // free: [v; ω], the motion cross product
-    S a[3], b[3];
-    cross3(x + 3, y, a);
-    cross3(x, y + 3, b);
-    for (int r = 0; r < 3; ++r) out[r] = a[r] + b[r];
-    cross3(x + 3, y + 3, out + 3);
+  if (type == kSpherical) return store3(cross(load3(x), load3(y)), out);
+  if (convention == kMujocoConvention) {  // free: [p; θ], the position additive
+    store3(Vec3<S>::zero(), out);
+    return store3(cross(load3(x + 3), load3(y + 3)), out + 3);
   }
+  // free: [v; ω], the motion cross product
+  const Motion<S> c = cross(Motion<S>{load3(x), load3(x + 3)}, Motion<S>{load3(y), load3(y + 3)});
+  store3(c.lin, out), store3(c.ang, out + 3);
 }
 
 // whether a body's joint has a bracket (a free or spherical joint of its own)

@@ -51,8 +51,6 @@ template <typename S> RBD_HD void tensor_row_pack(int nv, const S* Mf, int i, S*
     for (int c = 0; c < nv; ++c) Ai[r * nv + c] = Mf[static_cast<long>(r) * n3 + p + c];
 }
 
-template <typename S> RBD_HD Vec3<S> load3(const S* z, long st) { return {z[0], z[st], z[2 * st]}; }
-template <typename S> RBD_HD void store3(const Vec3<S>& a, S* z, long st) { z[0] = a.x, z[st] = a.y, z[2 * st] = a.z; }
 // the symmetric pair (j, k), (k, j) of a full (n3 x n3) matrix += x
 template <typename S> RBD_HD void add_sym(S* Mf, int n3, int j, int k, S x) {
   Mf[static_cast<long>(j) * n3 + k] += x;

@@ -31,6 +31,9 @@ template <typename S> RBD_HD S dot(const Vec3<S>& a, const Vec3<S>& b) { return 
 template <typename S> RBD_HD Vec3<S> cross(const Vec3<S>& a, const Vec3<S>& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
+// three values of an array, `st` apart, as a Vec3, and back
+template <typename S> RBD_HD Vec3<S> load3(const S* z, long st = 1) { return {z[0], z[st], z[2 * st]}; }
+template <typename S> RBD_HD void store3(const Vec3<S>& a, S* z, long st = 1) { z[0] = a.x, z[st] = a.y, z[2 * st] = a.z; }
 
 // row-major 3x3
 template <typename S> struct Mat3 {
