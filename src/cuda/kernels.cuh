@@ -73,38 +73,15 @@ template <typename T> RBD_HD bool all_finite(const T* x, long n) {
 }
 
 // the value checks of ops::check_call (src/ops/ops.cpp) on sample s's arrays, as a predicate, in
-// double as there: finite values of magnitude at most the dtype's bound, non-negative weights,
+// double as there (the same within_bound and configuration_within_bounds, model/input_bounds.hpp): finite values of magnitude at most the dtype's bound, non-negative weights,
 // ordered bounds, configurations with bounded angles and unit quaternions. For device arrays,
 // which the host cannot read without a copy; a sample that fails is not computed, and the host
 // words the error from a copy of the inputs (CudaEngine::Impl::fail_inputs)
 template <typename T> RBD_HD constexpr double input_bound() { return sizeof(T) == 4 ? kMaxInputF32 : kMaxInput; }
 template <typename T> RBD_HD constexpr double angle_bound() { return sizeof(T) == 4 ? kMaxAngleF32 : kMaxAngle; }
-template <typename T> RBD_HD bool bounded_values(const T* x, long n) {
-  bool ok = true;
-  for (long k = 0; k < n; ++k) ok &= fabs(static_cast<double>(x[k])) <= input_bound<T>();  // false for NaN
-  return ok;
-}
+template <typename T> RBD_HD bool bounded_values(const T* x, long n) { return within_bound(x, n, input_bound<T>()); }
 template <typename T> RBD_HD bool configuration_ok(const ModelView<T>& m, const T* q) {
-  bool ok = bounded_values(q, m.nq);
-  for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<T>& b = m.body[i];
-    if (b.mimic) continue;
-    if (b.type == kRevolute || b.type == kHelical) ok &= fabs(static_cast<double>(q[b.q_idx])) <= angle_bound<T>();
-    if (b.type == kFree || b.type == kSpherical) {
-      const T* h = q + b.q_idx + (b.type == kFree ? 3 : 0);
-      double n2 = 0;
-      for (int k = 0; k < 4; ++k) {
-        const double x = h[k];
-#if defined(__CUDA_ARCH__)
-        n2 = __dadd_rn(n2, __dmul_rn(x, x));  // rounded as the host's check (no fused multiply-add)
-#else
-        n2 += x * x;
-#endif
-      }
-      ok &= fabs(sqrt(n2) - 1.0) <= 1e-6;
-    }
-  }
-  return ok;
+  return configuration_within_bounds(m.body, m.nb, m.nq, q, input_bound<T>(), angle_bound<T>());
 }
 // argument K of Op (its kind and check read at compile time: the spec is host data)
 template <typename Op, int K, typename T> RBD_HD bool arg_ok(const DeviceCall<T>& c, const ModelView<T>& m, long s) {

@@ -42,11 +42,7 @@ template <> struct Bounds<float> {
 };
 
 // n finite values of magnitude at most Bounds<T>::input
-template <typename T> bool finite_values(const T* x, long n) {
-  bool ok = true;
-  for (long k = 0; k < n; ++k) ok &= std::fabs(static_cast<double>(x[k])) <= Bounds<T>::input;  // false for NaN
-  return ok;
-}
+template <typename T> bool finite_values(const T* x, long n) { return within_bound(x, n, Bounds<T>::input); }
 
 template <typename T> [[noreturn]] void throw_values(const T* x, long n, const std::string& label) {
   for (long k = 0; k < n; ++k) {
@@ -68,18 +64,7 @@ template <typename T> [[noreturn]] void throw_values(const T* x, long n, const s
 // a configuration (nq values) in a convention: finite, bounded angles, unit quaternions
 template <typename T> void check_configuration_values(const Model& m, const T* q, const char* name, bool batched,
                                                       long s, int convention) {
-  bool ok = finite_values(q, m.nq);
-  for (size_t i = 0; ok && i < m.bodies.size(); ++i) {
-    const BodyDesc<double>& b = m.bodies[i];
-    if (b.mimic) continue;
-    if (b.type == kRevolute || b.type == kHelical) ok &= std::fabs(static_cast<double>(q[b.q_idx])) <= Bounds<T>::angle;
-    if (b.type == kFree || b.type == kSpherical) {
-      const int o = b.q_idx + (b.type == kFree ? 3 : 0);
-      double n2 = 0;
-      for (int k = 0; k < 4; ++k) n2 += static_cast<double>(q[o + k]) * static_cast<double>(q[o + k]);
-      ok &= std::fabs(std::sqrt(n2) - 1.0) <= 1e-6;
-    }
-  }
+  const bool ok = configuration_within_bounds(m.bodies.data(), m.nb(), m.nq, q, Bounds<T>::input, Bounds<T>::angle);
   if (ok) return;
   // the message: the bounds of T first, then the float64 checks (joint angles, quaternions)
   const std::string label = label_of(name, batched, s);
