@@ -25,16 +25,6 @@ template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Works
   }
 }
 
-// M[r, c] and M[c, r] <- x (add: += x, once on the diagonal)
-template <typename S> RBD_HD void crba_store(S* M, int nv, int r, int c, S x, bool add) {
-  if (!add) {
-    M[r * nv + c] = M[c * nv + r] = x;
-    return;
-  }
-  M[r * nv + c] += x;
-  if (r != c) M[c * nv + r] += x;
-}
-
 // M_ji for the DoFs of ancestor j against one column F = Ic_i s: s_jᵀ F, written
 // to both triangles (add: accumulated, for mimic models). A free joint's six
 // world columns are R's columns and p × them, so its six products are F in the
@@ -51,7 +41,12 @@ RBD_HD void crba_store_ancestor(const ModelView<S>& m, Workspace<S>& w, int j, c
     const Motion<S>* sj = w.S_world + 6 * j;
     for (int l = 0; l < bj.nv; ++l) x[l] = dot(sj[l], F);
   }
-  for (int l = 0; l < bj.nv; ++l) crba_store(M, nv, bj.v_idx + l, c, x[l], add);
+  for (int l = 0; l < bj.nv; ++l) {
+    S& upper = M[(bj.v_idx + l) * nv + c];
+    S& lower = M[c * nv + bj.v_idx + l];
+    if (add) upper += x[l], lower += x[l];
+    else upper = x[l], lower = x[l];
+  }
 }
 
 // backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors,
@@ -71,7 +66,17 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
       const Force<S> F = w.Ic[i] * si[k];
       const int c = bi.v_idx + k;
       // diagonal block: the joint's own DoFs l <= k (both triangles)
-      for (int l = 0; l <= k; ++l) crba_store(M, nv, bi.v_idx + l, c, dot(si[l], F), add);
+      for (int l = 0; l <= k; ++l) {
+        const S x = dot(si[l], F);
+        S& upper = M[(bi.v_idx + l) * nv + c];
+        S& lower = M[c * nv + bi.v_idx + l];
+        if (add) {
+          upper += x;
+          if (l != k) lower += x;
+        } else {
+          upper = x, lower = x;
+        }
+      }
       for (int j = bi.parent; j >= 0; j = m.body[j].parent) crba_store_ancestor(m, w, j, F, c, add, M);
     }
     if (bi.parent >= 0) w.Ic[bi.parent] += w.Ic[i];
