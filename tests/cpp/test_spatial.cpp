@@ -105,6 +105,26 @@ TEST(Spatial, TransformedInertiaMatchesActions) {
   }
 }
 
+TEST(Spatial, InertiaRateIsTheProductRule) {
+  // B = v ×* I - I v× in nine numbers: B m = v ×* (I m) - I (v × m) for every m,
+  // B is symmetric, sums keep the form, and X* B X⁻¹ m = X (B (X⁻¹ m))
+  for (int t = 0; t < 20; ++t) {
+    const Inertia<double> I = ri(), J = ri();
+    const Mo v = rm(), u = rm(), m = rm(), n = rm();
+    const InertiaRate<double> B = inertia_variation(I, v);
+    expect_near(B * m, cross(v, I * m) - I * cross(v, m), 1e-12);
+    // symmetric: n·(B m) = m·(B n)
+    EXPECT_NEAR(dot(n, B * m), dot(m, B * n), 1e-12);
+    InertiaRate<double> sum = B;
+    sum += inertia_variation(J, u);
+    expect_near(sum * m, B * m + (cross(u, J * m) - J * cross(u, m)), 1e-12);
+    const Tr X = rt();
+    expect_near(transform_rate(X, sum) * m, X.act(sum * X.act_inv(m)), 1e-12);
+    // one body moved: the rate of the moved inertia under the moved twist
+    expect_near(transform_rate(X, B) * m, inertia_variation(transform_inertia(X, I), X.act(v)) * m, 1e-12);
+  }
+}
+
 TEST(Spatial, InertiaIsSymmetricPositive) {
   const Inertia<double> I = ri();
   const Mo a = rm(), b = rm();

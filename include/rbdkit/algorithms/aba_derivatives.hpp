@@ -23,8 +23,8 @@ template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<
 }
 
 // D (nv x cols, row-major) <- -M⁻¹ D, after prepare_minv. Without mimic
-// joints a row-by-row product (the inner loop runs along rows of D, which
-// vectorises); with them, Cholesky solves column by column.
+// joints a dense product (dense.hpp's neg_matmul); with them, Cholesky solves
+// column by column.
 template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspace<S>& w, S* D, int cols) {
   const int nv = m.nv;
   const S* Mi = w.dense;
@@ -39,28 +39,7 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
   }
   S* RBD_RESTRICT Dc = w.dense2;  // a copy of D (nv x cols, cols <= max(nv, 6))
   for (int k = 0; k < nv * cols; ++k) Dc[k] = D[k];
-  // out row r, eight columns at a time: the eight sums stay in registers over k
-  constexpr int T = 8;
-  for (int r = 0; r < nv; ++r) {
-    S* RBD_RESTRICT out = D + r * cols;
-    const S* RBD_RESTRICT Mi_r = Mi + r * nv;
-    int c0 = 0;
-    for (; c0 + T <= cols; c0 += T) {
-      S acc[T];
-      for (int j = 0; j < T; ++j) acc[j] = S(0);
-      for (int k = 0; k < nv; ++k) {
-        const S a = Mi_r[k];
-        const S* RBD_RESTRICT row = Dc + k * cols + c0;
-        for (int j = 0; j < T; ++j) acc[j] += a * row[j];
-      }
-      for (int j = 0; j < T; ++j) out[c0 + j] = -acc[j];
-    }
-    for (int c = c0; c < cols; ++c) {
-      S acc = S(0);
-      for (int k = 0; k < nv; ++k) acc += Mi_r[k] * Dc[k * cols + c];
-      out[c] = -acc;
-    }
-  }
+  neg_matmul(Mi, Dc, nv, cols, D);
 }
 
 // Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the direct inverse it

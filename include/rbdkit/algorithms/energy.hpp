@@ -83,7 +83,7 @@ template <typename S> RBD_HD void coriolis_backward_pass(const ModelView<S>& m, 
       const Motion<S> sdot = cross(w.v[d], sd[a]);
       F[a] = Ic * sdot + S(0.5) * (w.B[d] * sd[a] + cross(sd[a], w.h[d]));
       P[a] = Ic * sd[a];
-      Q[a] = S(0.5) * (mul_t(w.B[d], sd[a]) - cross(sd[a], w.h[d]));
+      Q[a] = S(0.5) * (w.B[d] * sd[a] - cross(sd[a], w.h[d]));  // Bᵀ s = B s (symmetric)
     }
     // rows of d and its ancestors, columns of d
     for (int e = d; e >= 0; e = m.body[e].parent) {

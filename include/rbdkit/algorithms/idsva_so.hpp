@@ -86,7 +86,7 @@ RBD_HD void so_path_push(Workspace<S>& w, int& n, int col, int depth, const Moti
 //   dM[i,k,d]   = s_k·a_i (i, k above c),   dM[i,d,k] = dM[d,i,k] = -s_k·α_i (k strictly below i)
 // (dM is zero when i and j are both DoFs of c, or k is at or above both).
 template <typename S>
-RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const Inertia<S>& Ic, const Mat6<S>& Bc,
+RBD_HD void idsva_so_body_terms(Workspace<S>& w, int nv, int n_c, int n, const Inertia<S>& Ic, const InertiaRate<S>& Bc,
                                 const Force<S>& hc, const Force<S>& Fc, S* d2q, S* d2v, S* d2qv, S* dM) {
   const Motion<S>* cm = w.so_m;
   Force<S>* cf = w.so_f;
@@ -314,7 +314,7 @@ RBD_HD void idsva_so_body_frame(const ModelView<S>& m, Workspace<S>& w, const S*
       w.Ic[p] += transform_inertia(X, w.Ic[c]);
       w.h[p] += X.act(w.h[c]);
       w.f[p] += X.act(w.f[c]);
-      w.B[p] += transform_mat6(X, w.B[c]);
+      w.B[p] += transform_rate(X, w.B[c]);
     }
   }
 }

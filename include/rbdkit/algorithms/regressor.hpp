@@ -57,7 +57,7 @@ template <typename S> RBD_HD Inertia<S> unit_inertia(int p) {
   return inertia_from_parameters(pi);
 }
 
-// B·m for B = v ×* I - I v× (rnea_derivatives' inertia_variation), without forming B
+// B·m for B = v ×* I - I v× (spatial.hpp's inertia_variation), without forming B
 template <typename S> RBD_HD Force<S> inertia_rate(const Inertia<S>& I, const Motion<S>& v, const Motion<S>& m) {
   return cross(v, I * m) - I * cross(v, m);
 }

@@ -24,34 +24,6 @@
 
 namespace rbd {
 
-// Mᵀ m for a 6x6 motion-to-force matrix M, the result read as a force
-template <typename S> RBD_HD Force<S> mul_t(const Mat6<S>& M, const Motion<S>& m) {
-  const S in[6] = {m.lin.x, m.lin.y, m.lin.z, m.ang.x, m.ang.y, m.ang.z};
-  S out[6];
-  for (int c = 0; c < 6; ++c) {
-    S acc = S(0);
-    for (int r = 0; r < 6; ++r) acc += M.m[6 * r + c] * in[r];
-    out[c] = acc;
-  }
-  return {{out[0], out[1], out[2]}, {out[3], out[4], out[5]}};
-}
-
-// B = v ×* I - I v× (the rate of change of a world inertia moving with v)
-template <typename S> RBD_HD Mat6<S> inertia_variation(const Inertia<S>& I, const Motion<S>& v) {
-  Mat6<S> B;
-  for (int c = 0; c < 6; ++c) {
-    Motion<S> e = Motion<S>::zero();
-    if (c < 3) e.lin[c] = S(1);
-    else e.ang[c - 3] = S(1);
-    const Force<S> col = cross(v, I * e) - I * cross(v, e);
-    for (int r = 0; r < 3; ++r) {
-      B(r, c) = col.lin[r];
-      B(r + 3, c) = col.ang[r];
-    }
-  }
-  return B;
-}
-
 // forward pass: world placements, subspace columns, velocities, accelerations,
 // column sensitivities, and per-body inertia, momentum, force and B.
 //   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null); placed:
@@ -95,7 +67,7 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
     Force<S> A[6], Bt[6];
     for (int a = 0; a < bi.nv; ++a) {
       A[a] = w.Ic[i] * si[a];
-      Bt[a] = mul_t(w.B[i], si[a]) - cross(si[a], w.h[i]);
+      Bt[a] = w.B[i] * si[a] - cross(si[a], w.h[i]);  // Bcᵀ s = Bc s (symmetric)
       if (tau) tau[bi.v_idx + a] += dot(si[a], w.f[i]);
     }
     for (int k = i; k >= 0; k = m.body[k].parent) {

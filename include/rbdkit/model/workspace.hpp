@@ -47,7 +47,7 @@ template <typename S> struct Workspace {
   Motion<S>* dAdq;       // (nb x 6)    rnea_derivatives: a_λ × s + v_λ × dVdq
   Motion<S>* dAdv;       // (nb x 6)    rnea_derivatives: v × s + dVdq
   Force<S>* h;           // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (world)
-  Mat6<S>* B;            // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
+  InertiaRate<S>* B;     // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
   S* u;                  // (nv)        aba: u = tau - Sᵀ·pA
   S* F;                  // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
   S* P;                  // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame (full layout only)

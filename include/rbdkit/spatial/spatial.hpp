@@ -208,6 +208,71 @@ template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X,
   return {m, h + m * p, I};
 }
 
+// ------------------------------------------------------------- InertiaRate
+// B = v ×* I - I v×: the rate of change of a world inertia I (mass m, first
+// moment h, rotational inertia I_O) carried along by the twist v = (v_lin, ω).
+// B is symmetric with a zero linear-linear block, so nine numbers hold it:
+//   B = [  0     -[β]× ]    β = m v_lin + ω × h
+//       [ [β]×     C   ]    C = [ω]× I_O - I_O [ω]× - [v_lin]×[h]× - [h]×[v_lin]×   (symmetric)
+// Sums of such matrices (subtree composites) and their changes of frame keep
+// that form. Bᵀ = B, so B m is also Bᵀ m.
+template <typename S> struct InertiaRate {
+  Vec3<S> beta;
+  Mat3<S> C;  // symmetric, both triangles stored
+
+  RBD_HD static InertiaRate zero() { return {Vec3<S>::zero(), Mat3<S>::zero()}; }
+  // B m, read as a force:  (-β × m_ang, β × m_lin + C m_ang)
+  RBD_HD Force<S> operator*(const Motion<S>& m) const { return {cross(m.ang, beta), cross(beta, m.lin) + C * m.ang}; }
+  RBD_HD InertiaRate& operator+=(const InertiaRate& o) {
+    beta += o.beta;
+    for (int i = 0; i < 9; ++i) C.m[i] += o.C.m[i];
+    return *this;
+  }
+};
+
+// B = v ×* I - I v× of a world inertia I moving with v.
+//   With P = [ω]× I_O (so I_O [ω]× = -Pᵀ) and [a]×[b]× = b aᵀ - (a·b) 1:
+//   C = P + Pᵀ - (h v_linᵀ + v_lin hᵀ) + 2 (h·v_lin) 1
+template <typename S> RBD_HD InertiaRate<S> inertia_variation(const Inertia<S>& I, const Motion<S>& v) {
+  const Vec3<S>& w = v.ang;
+  const Vec3<S>& vl = v.lin;
+  Mat3<S> P;  // column c: ω × (column c of I_O)
+  for (int c = 0; c < 3; ++c) {
+    const Vec3<S> col = cross(w, Vec3<S>{I.I(0, c), I.I(1, c), I.I(2, c)});
+    P(0, c) = col.x, P(1, c) = col.y, P(2, c) = col.z;
+  }
+  const S diag = S(2) * dot(I.h, vl);
+  InertiaRate<S> B;
+  B.beta = I.m * vl + cross(w, I.h);
+  for (int r = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c) {
+      const S x = P(r, c) + P(c, r) - (I.h[r] * vl[c] + vl[r] * I.h[c]) + (r == c ? diag : S(0));
+      B.C(r, c) = x;
+      B.C(c, r) = x;
+    }
+  return B;
+}
+
+// X* B X⁻¹ (X = X_a_b: B of frame b re-expressed in frame a):
+//   β' = R β,   C' = R C Rᵀ - [β']×[p]× - [p]×[β']× = R C Rᵀ - (p β'ᵀ + β' pᵀ) + 2 (β'·p) 1
+template <typename S> RBD_HD InertiaRate<S> transform_rate(const Transform<S>& X, const InertiaRate<S>& B) {
+  const Mat3<S>& R = X.R;
+  const Vec3<S>& p = X.p;
+  InertiaRate<S> out;
+  out.beta = R * B.beta;
+  const Vec3<S>& b = out.beta;
+  const Mat3<S> RC = R * B.C;
+  const S diag = S(2) * dot(b, p);
+  for (int r = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c) {
+      const S rot = RC(r, 0) * R(c, 0) + RC(r, 1) * R(c, 1) + RC(r, 2) * R(c, 2);
+      const S x = rot - (p[r] * b[c] + b[r] * p[c]) + (r == c ? diag : S(0));
+      out.C(r, c) = x;
+      out.C(c, r) = x;
+    }
+  return out;
+}
+
 // ------------------------------------------------------------------- Mat6
 // dense 6x6 in [linear; angular] blocks, row-major; the articulated inertias
 // of ABA and the Minv recursion. It maps motions to forces.
