@@ -53,9 +53,9 @@ template <typename S> RBD_HD bool joint_inertia(int n, const Motion<S>* Sc, cons
 // about a frame axis e_k has S = ±mult·e_(3+k) or e_k, so U = IA S is a column
 // of IA and D one of its diagonal entries
 template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
-  if (b.axis_k && (b.type == kRevolute || b.type == kPrismatic)) {
-    const int k = b.axis_k - 1, c = b.type == kRevolute ? 3 + k : k;
-    const S sk = b.mult * (k == 0 ? b.axis.x : k == 1 ? b.axis.y : b.axis.z);
+  S sk = S(0);
+  const int c = joint_frame_column(b, sk);
+  if (c >= 0) {
     U[0] = {{sk * IA(0, c), sk * IA(1, c), sk * IA(2, c)}, {sk * IA(3, c), sk * IA(4, c), sk * IA(5, c)}};
     const S D = sk * (sk * IA(c, c));  // sᵀ U
     if (!pivot_positive(D, IA(c, c) * (sk * sk))) return false;

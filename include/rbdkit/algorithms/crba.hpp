@@ -26,21 +26,15 @@ template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Works
 }
 
 // M_ji for the DoFs of ancestor j against one column F = Ic_i s: s_jᵀ F, written
-// to both triangles (add: accumulated, for mimic models). A free joint's six
-// world columns are R's columns and p × them, so its six products are F in the
-// joint's own frame, X_0j⁻¹ F (one force transform instead of six dot products)
+// to both triangles (add: accumulated, for mimic models). joint_project_in: a
+// free joint's six products are one force transform, X_0j⁻¹ F
 template <typename S>
 RBD_HD void crba_store_ancestor(const ModelView<S>& m, Workspace<S>& w, int j, const Force<S>& F, int c, bool add,
                                 S* M) {
   const BodyDesc<S>& bj = m.body[j];
   const int nv = m.nv;
   S x[6];
-  if (bj.type == kFree) {
-    store(w.X_world[j].act_inv(F), x);
-  } else {
-    const Motion<S>* sj = w.S_world + 6 * j;
-    for (int l = 0; l < bj.nv; ++l) x[l] = dot(sj[l], F);
-  }
+  joint_project_in(bj, w.X_world[j], w.S_world + 6 * j, F, x);
   for (int l = 0; l < bj.nv; ++l) {
     S& upper = M[(bj.v_idx + l) * nv + c];
     S& lower = M[c * nv + bj.v_idx + l];

@@ -21,6 +21,16 @@
 //   mj_integrate, mj_difference, mj_dintegrate, mj_ddifference: the same in
 //                                MuJoCo's convention (mujoco_convention.hpp)
 //   neutral(qj)                  zero coordinates, identity quaternion
+//   bracket(x, y, out), mj_bracket(x, y, out)   the Lie bracket of two tangent
+//                                vectors (zero on R; so(3); se(3), or R³ × so(3))
+// and, with defaults in JointDefaults that a type replaces where its structure
+// saves work:
+//   placement(b, q)              X_tree · X_J(q) (revolute: two turned columns,
+//                                prismatic: a translation)
+//   subspace_col_in(b, X, k)     X · (column k of S) without S's zero products
+//   project_in(b, X, sx, F, out) (X S)ᵀ F from the columns sx = X S (free: X⁻¹ F)
+//   frame_column(b, sign)        c when S = sign·e_c (a 1-DoF joint about a frame
+//                                axis), else -1
 // Manifolds: a 1-DoF joint R in both conventions; spherical SO(3), quaternion
 // (x, y, z, w) in ours, (w, x, y, z) in MuJoCo's; free SE(3) with the twist in
 // the local frame in ours (Pinocchio's), R³ × SO(3) in MuJoCo's (the position
@@ -61,9 +71,70 @@ template <typename S> RBD_HD void put_mat6(const Mat6<S>& B, S sign, S* J, int n
     for (int c = 0; c < 6; ++c) J[(r0 + r) * nv + r0 + c] = sign * B(r, c);
 }
 
+// R · rot(e_K, t) for c = cos t, s = sin t: columns i, j = K+1, K+2 (mod 3)
+// of R turned in their plane, column K kept (K a constant: registers on a GPU)
+template <int K, typename S> RBD_HD Mat3<S> turn_columns(const Mat3<S>& R, const S& c, const S& s) {
+  constexpr int i = (K + 1) % 3, j = (K + 2) % 3;
+  Mat3<S> o = R;
+  for (int r = 0; r < 3; ++r) {
+    o(r, i) = c * R(r, i) + s * R(r, j);
+    o(r, j) = c * R(r, j) - s * R(r, i);
+  }
+  return o;
+}
+
+// R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1)
+template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
+  const S c = scos(t), s = ssin(t);
+  switch (b.axis_k) {
+    case 1: return turn_columns<0>(R, c, b.axis.x * s);
+    case 2: return turn_columns<1>(R, c, b.axis.y * s);
+    default: return turn_columns<2>(R, c, b.axis.z * s);
+  }
+}
+
+// R · axis for a 1-DoF body: a column of R when the axis is a frame axis
+template <typename S> RBD_HD Vec3<S> rotate_axis(const BodyDesc<S>& b, const Mat3<S>& R) {
+  switch (b.axis_k) {
+    case 1: return b.axis.x * Vec3<S>{R(0, 0), R(1, 0), R(2, 0)};
+    case 2: return b.axis.y * Vec3<S>{R(0, 1), R(1, 1), R(2, 1)};
+    case 3: return b.axis.z * Vec3<S>{R(0, 2), R(1, 2), R(2, 2)};
+    default: return R * b.axis;
+  }
+}
+
+// ---- what a joint type does unless it says otherwise (JT: the joint type)
+
+template <typename JT> struct JointDefaults {
+  // X_parent_body = X_tree · X_J(q)
+  template <typename S> RBD_HD static Transform<S> placement(const BodyDesc<S>& b, const S* q) {
+    return b.X_tree * JT::transform(b, q);
+  }
+  // X · (column k of S), for X mapping the body frame to another (X_0i: the world)
+  template <typename S> RBD_HD static Motion<S> subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int k) {
+    return X.act(JT::subspace_col(b, k));
+  }
+  // (X S)ᵀ F for a force F in X's frame, given the columns X S (sx: nv of them)
+  template <typename S>
+  RBD_HD static void project_in(const BodyDesc<S>&, const Transform<S>&, const Motion<S>* sx, const Force<S>& F,
+                                S* out) {
+    for (int l = 0; l < JT::nv; ++l) out[l] = dot(sx[l], F);
+  }
+  // the column c of a 6x6 that S picks when S is ±e_c (sign: the ± and the
+  // mimic multiplier), else -1
+  template <typename S> RBD_HD static int frame_column(const BodyDesc<S>&, S&) { return -1; }
+  // the Lie bracket [x, y] of two tangent vectors of the joint (nv each): zero
+  // on an abelian manifold
+  template <typename S> RBD_HD static void bracket(const S*, const S*, S* out) {
+    for (int l = 0; l < JT::nv; ++l) out[l] = S(0);
+  }
+  // the same in MuJoCo's convention
+  template <typename S> RBD_HD static void mj_bracket(const S* x, const S* y, S* out) { JT::bracket(x, y, out); }
+};
+
 // ---- 1-DoF joints: the manifold R in both conventions (JT: the joint type)
 
-template <typename JT> struct OneDofJoint {
+template <typename JT> struct OneDofJoint : JointDefaults<JT> {
   static constexpr int nq = 1, nv = 1, rot = -1;
   template <typename S> RBD_HD static Motion<S> motion(const BodyDesc<S>& b, const S* x) {
     return x[0] * JT::subspace_col(b, 0);
@@ -96,6 +167,20 @@ struct RevoluteJoint : OneDofJoint<RevoluteJoint> {
   template <typename S> RBD_HD static Motion<S> subspace_col(const BodyDesc<S>& b, int) {
     return {Vec3<S>::zero(), b.mult * b.axis};
   }
+  // X_J is a pure rotation: two turned columns of X_tree about a frame axis
+  template <typename S> RBD_HD static Transform<S> placement(const BodyDesc<S>& b, const S* q) {
+    if (b.axis_k) return {rotate_about_frame_axis(b, b.X_tree.R, joint_angle(b, q)), b.X_tree.p};
+    return {b.X_tree.R * axis_angle(b.axis, joint_angle(b, q)), b.X_tree.p};
+  }
+  template <typename S> RBD_HD static Motion<S> subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int) {
+    const Vec3<S> w = b.mult * rotate_axis(b, X.R);
+    return {cross(X.p, w), w};
+  }
+  template <typename S> RBD_HD static int frame_column(const BodyDesc<S>& b, S& sign) {
+    if (!b.axis_k) return -1;
+    sign = b.mult * b.axis[b.axis_k - 1];
+    return 3 + b.axis_k - 1;
+  }
 };
 
 // translation along a unit axis
@@ -105,6 +190,18 @@ struct PrismaticJoint : OneDofJoint<PrismaticJoint> {
   }
   template <typename S> RBD_HD static Motion<S> subspace_col(const BodyDesc<S>& b, int) {
     return {b.mult * b.axis, Vec3<S>::zero()};
+  }
+  // X_J is a pure translation
+  template <typename S> RBD_HD static Transform<S> placement(const BodyDesc<S>& b, const S* q) {
+    return {b.X_tree.R, b.X_tree.p + joint_angle(b, q) * rotate_axis(b, b.X_tree.R)};
+  }
+  template <typename S> RBD_HD static Motion<S> subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int) {
+    return {b.mult * rotate_axis(b, X.R), Vec3<S>::zero()};
+  }
+  template <typename S> RBD_HD static int frame_column(const BodyDesc<S>& b, S& sign) {
+    if (!b.axis_k) return -1;
+    sign = b.mult * b.axis[b.axis_k - 1];
+    return b.axis_k - 1;
   }
 };
 
@@ -121,8 +218,17 @@ struct HelicalJoint : OneDofJoint<HelicalJoint> {
 
 // ---- spherical: SO(3), the local angular velocity
 
-struct SphericalJoint {
+struct SphericalJoint : JointDefaults<SphericalJoint> {
   static constexpr int nq = 4, nv = 3, rot = 0;
+  // X S: column k of X's rotation, and p × it
+  template <typename S> RBD_HD static Motion<S> subspace_col_in(const BodyDesc<S>&, const Transform<S>& X, int k) {
+    const Vec3<S> w = {X.R(0, k), X.R(1, k), X.R(2, k)};
+    return {cross(X.p, w), w};
+  }
+  // so(3): [x, y] = x × y, in both conventions
+  template <typename S> RBD_HD static void bracket(const S* x, const S* y, S* out) {
+    store3(cross(load3(x), load3(y)), out);
+  }
   template <typename S> RBD_HD static Transform<S> transform(const BodyDesc<S>& b, const S* q) {
     return {quat_to_matrix(q + b.q_idx), Vec3<S>::zero()};
   }
@@ -181,8 +287,32 @@ struct SphericalJoint {
 
 // ---- free: [p (3), quaternion (4)], the twist [v_lin; w] in the local frame
 
-struct FreeJoint {
+struct FreeJoint : JointDefaults<FreeJoint> {
   static constexpr int nq = 7, nv = 6, rot = 3;
+  // X S: the columns of X's rotation (linear), and p × them (angular)
+  template <typename S> RBD_HD static Motion<S> subspace_col_in(const BodyDesc<S>&, const Transform<S>& X, int k) {
+    const int c = k < 3 ? k : k - 3;
+    const Vec3<S> e = {X.R(0, c), X.R(1, c), X.R(2, c)};
+    if (k < 3) return {e, Vec3<S>::zero()};
+    return {cross(X.p, e), e};
+  }
+  // (X S)ᵀ F = Sᵀ (X⁻¹ F) = F in the joint's own frame: one force transform
+  // instead of six dot products
+  template <typename S>
+  RBD_HD static void project_in(const BodyDesc<S>&, const Transform<S>& X, const Motion<S>*, const Force<S>& F,
+                                S* out) {
+    store(X.act_inv(F), out);
+  }
+  // se(3) ([v; ω]): the motion cross product; MuJoCo's R³ × so(3) ([p; θ]):
+  // the position additive
+  template <typename S> RBD_HD static void bracket(const S* x, const S* y, S* out) {
+    const Motion<S> c = cross(Motion<S>{load3(x), load3(x + 3)}, Motion<S>{load3(y), load3(y + 3)});
+    store3(c.lin, out), store3(c.ang, out + 3);
+  }
+  template <typename S> RBD_HD static void mj_bracket(const S* x, const S* y, S* out) {
+    store3(Vec3<S>::zero(), out);
+    store3(cross(load3(x + 3), load3(y + 3)), out + 3);
+  }
   template <typename S> RBD_HD static Transform<S> transform(const BodyDesc<S>& b, const S* q) {
     const S* qj = q + b.q_idx;
     return {quat_to_matrix(qj + 3), {qj[0], qj[1], qj[2]}};
@@ -272,14 +402,14 @@ struct FreeJoint {
 // ---- the dispatch
 
 // f(JT{}) for the joint type JT of `type` (JointType); every branch returns the same type
+// (tests in the order of how common the types are, the revolute first: a chain
+// of compares that the branch predictor learns per body, no jump table)
 template <typename F> RBD_HD decltype(auto) visit_joint(int type, F&& f) {
-  switch (type) {
-    case kRevolute: return f(RevoluteJoint{});
-    case kPrismatic: return f(PrismaticJoint{});
-    case kHelical: return f(HelicalJoint{});
-    case kSpherical: return f(SphericalJoint{});
-    default: return f(FreeJoint{});  // kFree
-  }
+  if (type == kRevolute) return f(RevoluteJoint{});
+  if (type == kFree) return f(FreeJoint{});
+  if (type == kPrismatic) return f(PrismaticJoint{});
+  if (type == kSpherical) return f(SphericalJoint{});
+  return f(HelicalJoint{});  // kHelical
 }
 
 // sizes of a joint type
@@ -308,76 +438,32 @@ template <typename S> RBD_HD Transform<S> joint_transform(const BodyDesc<S>& b, 
   return visit_joint(b.type, [&](auto J) { return J.transform(b, q); });
 }
 
-// R · rot(e_K, t) for c = cos t, s = sin t: columns i, j = K+1, K+2 (mod 3)
-// of R turned in their plane, column K kept (K a constant: registers on a GPU)
-template <int K, typename S> RBD_HD Mat3<S> turn_columns(const Mat3<S>& R, const S& c, const S& s) {
-  constexpr int i = (K + 1) % 3, j = (K + 2) % 3;
-  Mat3<S> o = R;
-  for (int r = 0; r < 3; ++r) {
-    o(r, i) = c * R(r, i) + s * R(r, j);
-    o(r, j) = c * R(r, j) - s * R(r, i);
-  }
-  return o;
-}
-
-// R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1)
-template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
-  const S c = scos(t), s = ssin(t);
-  switch (b.axis_k) {
-    case 1: return turn_columns<0>(R, c, b.axis.x * s);
-    case 2: return turn_columns<1>(R, c, b.axis.y * s);
-    default: return turn_columns<2>(R, c, b.axis.z * s);
-  }
-}
-
-// R · axis for a 1-DoF body: a column of R when the axis is a frame axis
-template <typename S> RBD_HD Vec3<S> rotate_axis(const BodyDesc<S>& b, const Mat3<S>& R) {
-  switch (b.axis_k) {
-    case 1: return b.axis.x * Vec3<S>{R(0, 0), R(1, 0), R(2, 0)};
-    case 2: return b.axis.y * Vec3<S>{R(0, 1), R(1, 1), R(2, 1)};
-    case 3: return b.axis.z * Vec3<S>{R(0, 2), R(1, 2), R(2, 2)};
-    default: return R * b.axis;
-  }
-}
-
-// X_parent_body = X_tree · X_J(q), with what X_J leaves out left out: a
-// revolute X_J is a pure rotation (two turned columns about a frame axis), a
-// prismatic one a pure translation
+// X_parent_body = X_tree · X_J(q)
 template <typename S> RBD_HD Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
-  if (b.type == kRevolute) {
-    if (b.axis_k) return {rotate_about_frame_axis(b, b.X_tree.R, joint_angle(b, q)), b.X_tree.p};
-    return {b.X_tree.R * axis_angle(b.axis, joint_angle(b, q)), b.X_tree.p};
-  }
-  if (b.type == kPrismatic) return {b.X_tree.R, b.X_tree.p + joint_angle(b, q) * rotate_axis(b, b.X_tree.R)};
-  return b.X_tree * joint_transform(b, q);
+  return visit_joint(b.type, [&](auto J) { return J.placement(b, q); });
+}
+
+// X · (column k of S): a subspace column in the frame X maps the body frame
+// to (the world for X_0i)
+template <typename S> RBD_HD Motion<S> joint_subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int k) {
+  return visit_joint(b.type, [&](auto J) { return J.subspace_col_in(b, X, k); });
+}
+
+// (X S)ᵀ F (out: nv), given the columns sx = X S
+template <typename S>
+RBD_HD void joint_project_in(const BodyDesc<S>& b, const Transform<S>& X, const Motion<S>* sx, const Force<S>& F,
+                             S* out) {
+  visit_joint(b.type, [&](auto J) { J.project_in(b, X, sx, F, out); });
+}
+
+// the column of a 6x6 that S picks (S = sign·e_c), or -1
+template <typename S> RBD_HD int joint_frame_column(const BodyDesc<S>& b, S& sign) {
+  return visit_joint(b.type, [&](auto J) { return J.frame_column(b, sign); });
 }
 
 // column k of the motion subspace S (mimic multiplier included)
 template <typename S> RBD_HD Motion<S> joint_subspace_col(const BodyDesc<S>& b, int k) {
   return visit_joint(b.type, [&](auto J) { return J.subspace_col(b, k); });
-}
-
-// X · (column k of S): a subspace column in the frame X maps the body frame
-// to (the world for X_0i), without the products by S's zero entries
-template <typename S> RBD_HD Motion<S> joint_subspace_col_in(const BodyDesc<S>& b, const Transform<S>& X, int k) {
-  switch (b.type) {
-    case kRevolute: {
-      const Vec3<S> w = b.mult * rotate_axis(b, X.R);
-      return {cross(X.p, w), w};
-    }
-    case kPrismatic: return {b.mult * rotate_axis(b, X.R), Vec3<S>::zero()};
-    case kSpherical: {
-      const Vec3<S> w = {X.R(0, k), X.R(1, k), X.R(2, k)};
-      return {cross(X.p, w), w};
-    }
-    case kFree: {
-      const int c = k < 3 ? k : k - 3;
-      const Vec3<S> e = {X.R(0, c), X.R(1, c), X.R(2, c)};
-      if (k < 3) return {e, Vec3<S>::zero()};
-      return {cross(X.p, e), e};
-    }
-    default: return X.act(joint_subspace_col(b, k));  // helical
-  }
 }
 
 // S·x for the joint's nv coordinates x

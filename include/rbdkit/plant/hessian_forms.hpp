@@ -35,14 +35,10 @@ enum HessianForm : int {
 
 // out = [x, y] for two tangent vectors of one joint's configuration block (d = the joint's nv)
 template <typename S> RBD_HD void joint_bracket(int type, int convention, const S* x, const S* y, S* out) {
-  if (type == kSpherical) return store3(cross(load3(x), load3(y)), out);
-  if (convention == kMujocoConvention) {  // free: [p; θ], the position additive
-    store3(Vec3<S>::zero(), out);
-    return store3(cross(load3(x + 3), load3(y + 3)), out + 3);
-  }
-  // free: [v; ω], the motion cross product
-  const Motion<S> c = cross(Motion<S>{load3(x), load3(x + 3)}, Motion<S>{load3(y), load3(y + 3)});
-  store3(c.lin, out), store3(c.ang, out + 3);
+  visit_joint(type, [&](auto J) {
+    if (convention == kMujocoConvention) J.mj_bracket(x, y, out);
+    else J.bracket(x, y, out);
+  });
 }
 
 // whether a body's joint has a bracket (a free or spherical joint of its own)
