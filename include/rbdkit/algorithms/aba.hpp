@@ -67,22 +67,66 @@ template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const 
   return joint_inertia(b.nv, Sc, IA, U, Dinv);
 }
 
-// Ia = IA - U D⁻¹ Uᵀ: the articulated inertia seen through the joint
-template <typename S> RBD_HD Mat6<S> articulated_residual(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv) {
-  Mat6<S> Ia = IA;
+// U D⁻¹ Uᵀ = Σ_k W_k U_kᵀ with W_k = Σ_l U_l D⁻¹(l, k): the n factor pairs as
+// 6-arrays (k < n)
+template <typename S> RBD_HD void articulated_factors(int n, const Force<S>* U, const S* Dinv, S (*W)[6], S (*Ua)[6]) {
+  for (int k = 0; k < n; ++k) store(U[k], Ua[k]);
   for (int k = 0; k < n; ++k) {
-    // W_k = Σ_l U_l Dinv(l, k)
-    S Wk[6] = {S(0), S(0), S(0), S(0), S(0), S(0)};
+    for (int r = 0; r < 6; ++r) W[k][r] = S(0);
     for (int l = 0; l < n; ++l) {
       const S d = Dinv[l * n + k];
-      Wk[0] += U[l].lin.x * d; Wk[1] += U[l].lin.y * d; Wk[2] += U[l].lin.z * d;
-      Wk[3] += U[l].ang.x * d; Wk[4] += U[l].ang.y * d; Wk[5] += U[l].ang.z * d;
+      for (int r = 0; r < 6; ++r) W[k][r] += Ua[l][r] * d;
     }
-    const S Uk[6] = {U[k].lin.x, U[k].lin.y, U[k].lin.z, U[k].ang.x, U[k].ang.y, U[k].ang.z};
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 6; ++c) Ia(r, c) -= Wk[r] * Uk[c];
   }
+}
+
+// out(r, c) = IA(r, c) - Σ_k W_k[r] U_k[c] for c >= r; with add, out(r, c) +=
+// that and out(c, r) += it too; without, both are assigned. (IA - U D⁻¹ Uᵀ is
+// symmetric: the upper triangle is computed and mirrored)
+template <typename S>
+RBD_HD void articulated_update(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv, bool add, Mat6<S>& out) {
+  S W[6][6], Ua[6][6];
+  articulated_factors(n, U, Dinv, W, Ua);
+  if (n == 1) {  // the common case, with the k loop gone
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) {
+        const S x = IA(r, c) - W[0][r] * Ua[0][c];
+        if (add) {
+          out(r, c) += x;
+          if (c != r) out(c, r) += x;
+        } else {
+          out(r, c) = x;
+          out(c, r) = x;
+        }
+      }
+    return;
+  }
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) {
+      S x = IA(r, c);
+      for (int k = 0; k < n; ++k) x -= W[k][r] * Ua[k][c];
+      if (add) {
+        out(r, c) += x;
+        if (c != r) out(c, r) += x;
+      } else {
+        out(r, c) = x;
+        out(c, r) = x;
+      }
+    }
+}
+
+// Ia = IA - U D⁻¹ Uᵀ: the articulated inertia seen through the joint
+template <typename S> RBD_HD Mat6<S> articulated_residual(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv) {
+  Mat6<S> Ia;
+  articulated_update(n, IA, U, Dinv, false, Ia);
   return Ia;
+}
+
+// IA_parent += IA - U D⁻¹ Uᵀ (one frame: the world-frame recursions), without
+// forming the residual
+template <typename S>
+RBD_HD void add_articulated_residual(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv, Mat6<S>& IA_parent) {
+  articulated_update(n, IA, U, Dinv, true, IA_parent);
 }
 
 // IA_λ += X* (IA - U D⁻¹ Uᵀ) X⁻¹ : the articulated inertia handed to the parent

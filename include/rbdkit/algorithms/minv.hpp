@@ -24,6 +24,22 @@
 
 namespace rbd {
 
+// out[k·stride] = -Σ_l D⁻¹(k, l) x_l for k < n; the n = N form has fixed-size loops
+template <int N, typename S> RBD_HD void neg_dinv_times(const S* Dinv, const S* x, S* out, int stride) {
+  for (int k = 0; k < N; ++k) {
+    S acc = S(0);
+    for (int l = 0; l < N; ++l) acc -= Dinv[k * N + l] * x[l];
+    out[k * stride] = acc;
+  }
+}
+template <typename S> RBD_HD void neg_dinv_times(int n, const S* Dinv, const S* x, S* out, int stride) {
+  for (int k = 0; k < n; ++k) {
+    S acc = S(0);
+    for (int l = 0; l < n; ++l) acc -= Dinv[k * n + l] * x[l];
+    out[k * stride] = acc;
+  }
+}
+
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
 // writes w.X_parent, w.X_world, w.Ic (the world body inertias), w.IA, w.U (world
 // frame), w.Dinv, w.S_world, w.F (nv x 6), Minv (upper part). false if some D
@@ -48,7 +64,7 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     // U = IA S, D⁻¹, and IA_λ += IA - U D⁻¹ Uᵀ
     for (int k = 0; k < ni; ++k) Sw[k] = joint_subspace_col_in(b, w.X_world[i], k);
     if (!joint_inertia(ni, Sw, w.IA[i], U, Dinv)) return false;
-    if (b.parent >= 0) w.IA[b.parent] += articulated_residual(ni, w.IA[i], U, Dinv);
+    if (b.parent >= 0) add_articulated_residual(ni, w.IA[i], U, Dinv, w.IA[b.parent]);
     // own block: D⁻¹
     for (int k = 0; k < ni; ++k)
       for (int l = 0; l < ni; ++l) Minv[(vi + k) * nv + vi + l] = Dinv[k * ni + l];
@@ -57,14 +73,10 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
       for (int c = vi + 1; c < c_end; ++c) Minv[vi * nv + c] = -Dinv[0] * dot(Sw[0], load_force(w.F + 6 * c));
     } else
     for (int c = vi + ni; c < c_end; ++c) {
-      const Force<S> fc = load_force(w.F + 6 * c);
       S sf[6];
-      for (int l = 0; l < ni; ++l) sf[l] = dot(Sw[l], fc);
-      for (int k = 0; k < ni; ++k) {
-        S acc = S(0);
-        for (int l = 0; l < ni; ++l) acc -= Dinv[k * ni + l] * sf[l];
-        Minv[(vi + k) * nv + c] = acc;
-      }
+      joint_project_in(b, w.X_world[i], Sw, load_force(w.F + 6 * c), sf);
+      if (ni == 6) neg_dinv_times<6>(Dinv, sf, Minv + vi * nv + c, nv);  // a free joint: fixed-size loops
+      else neg_dinv_times(ni, Dinv, sf, Minv + vi * nv + c, nv);
     }
     // F_λ = F_i + U Minv_i· over the subtree columns (in place)
     if (b.parent < 0) continue;
