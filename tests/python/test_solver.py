@@ -45,6 +45,24 @@ def default_solution(iiwa):
     return reach(iiwa)
 
 
+@pytest.fixture(scope="module")
+def engine_solution(iiwa):
+    # derivatives from the batch engine (an rbdkit.Handle's, in C++). The
+    # default's come from the per-sample functions: equal to rounding (the
+    # engine has its own sin and cos), and a barrier-schedule decision on the
+    # way may flip on that rounding, so the engine runs are compared with this one
+    return reach(iiwa, handle=rbdkit.Handle(iiwa, algorithms=["integrator_gradient"], threads=1))[1]
+
+
+def test_engine_and_default_derivatives_solve_alike(default_solution, engine_solution):
+    _, ref = default_solution
+    res = engine_solution
+    assert res.converged and ref.converged
+    np.testing.assert_allclose(res.U, ref.U, rtol=0, atol=1e-9 * np.abs(ref.U).max())
+    # the same iterates up to at most one extra step where the stall test flips on rounding
+    assert abs(res.iterations - ref.iterations) <= 1
+
+
 def test_default_task_converges_within_limits(iiwa, default_solution):
     setup, res = default_solution
     assert res.converged, res.status
@@ -118,8 +136,8 @@ class CountingHandle:
         return self.h.plant_step_hessian(X, U, dt, integrator_type, **kw)
 
 
-def test_derivatives_come_from_the_handle(iiwa, default_solution):
-    _, ref = default_solution
+def test_derivatives_come_from_the_handle(iiwa, engine_solution):
+    ref = engine_solution
     h = CountingHandle(iiwa, algorithms=["integrator_gradient"])
     _, res = reach(iiwa, handle=h)
     N = 100
@@ -129,16 +147,16 @@ def test_derivatives_come_from_the_handle(iiwa, default_solution):
     assert all(c[1] == (N, 14) and c[2] == (N, 7) for c in grads)
     assert res.derivative_knots == N * len(grads) == ref.derivative_knots
     assert len(grads) <= res.iterations
-    # the same derivatives as the C++ handle (the Python handle's go through the
-    # batched engine: equal to rounding): the same iterates
+    # the same derivatives as the C++ handle's batch engine: the same iterates
     np.testing.assert_allclose(res.U, ref.U, rtol=0, atol=1e-9 * np.abs(ref.U).max())
     assert res.iterations == ref.iterations
 
 
-def test_an_rbdkit_handle_stays_in_cpp(iiwa, default_solution):
+def test_an_rbdkit_handle_stays_in_cpp(iiwa, engine_solution):
     # an rbdkit.Handle (float64) gives its threads to the solver's C++ handle:
     # no derivative goes through Python, and the iterates are the C++ handle's
-    _, ref = default_solution
+    # (its engine is bit-identical whatever the thread count)
+    ref = engine_solution
     h = rbdkit.Handle(iiwa, algorithms=["integrator_gradient"], threads=2)
 
     def boom(*a, **k):
