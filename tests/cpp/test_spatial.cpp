@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <vector>
 
+#include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/dense.hpp"
 #include "rbdkit/model/configuration.hpp"
 #include "rbdkit/spatial/lie.hpp"
 #include "rbdkit/spatial/spatial.hpp"
@@ -113,8 +116,8 @@ TEST(Spatial, InertiaRateIsTheProductRule) {
     const Mo v = rm(), u = rm(), m = rm(), n = rm();
     const InertiaRate<double> B = inertia_variation(I, v);
     expect_near(B * m, cross(v, I * m) - I * cross(v, m), 1e-12);
-    // symmetric: n·(B m) = m·(B n)
-    EXPECT_NEAR(dot(n, B * m), dot(m, B * n), 1e-12);
+    // B is symmetric (so Bᵀ m = B m): n·(B m) = m·(B n) for the operator itself
+    EXPECT_NEAR(dot(n, cross(v, I * m) - I * cross(v, m)), dot(m, cross(v, I * n) - I * cross(v, n)), 1e-12);
     InertiaRate<double> sum = B;
     sum += inertia_variation(J, u);
     expect_near(sum * m, B * m + (cross(u, J * m) - J * cross(u, m)), 1e-12);
@@ -122,6 +125,57 @@ TEST(Spatial, InertiaRateIsTheProductRule) {
     expect_near(transform_rate(X, sum) * m, X.act(sum * X.act_inv(m)), 1e-12);
     // one body moved: the rate of the moved inertia under the moved twist
     expect_near(transform_rate(X, B) * m, inertia_variation(transform_inertia(X, I), X.act(v)) * m, 1e-12);
+  }
+}
+
+TEST(Dense, NegMatmulEqualsThePlainLoopBitForBit) {
+  // the host's register-blocked product: every shape of the block, remainder
+  // and tail paths, both precisions, against the plain triple loop exactly
+  auto check = [](auto zero) {
+    using T = decltype(zero);
+    for (int n = 1; n <= 9; ++n)
+      for (int cols = 0; cols <= 19; ++cols) {
+        std::vector<T> A(n * n), B(n * cols), out(n * cols), ref(n * cols);
+        for (auto& a : A) a = static_cast<T>(uni());
+        for (auto& b : B) b = static_cast<T>(uni());
+        neg_matmul(A.data(), B.data(), n, cols, out.data());
+        neg_matmul_plain(A.data(), B.data(), n, cols, ref.data());
+        for (int k = 0; k < n * cols; ++k) ASSERT_EQ(out[k], ref[k]) << n << " x " << cols << " @ " << k;
+      }
+  };
+  check(0.0);
+  check(0.0f);
+}
+
+TEST(Dense, ArticulatedUpdateIsIaMinusUDinvUt) {
+  // IA - U D⁻¹ Uᵀ for 1, 3 and 6 joint DoFs against the dense product, assigned and added
+  for (int n : {1, 3, 6}) {
+    Mat6<double> IA;
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) IA(r, c) = IA(c, r) = uni() + (r == c ? 6.0 : 0.0);
+    Force<double> U[6];
+    for (int k = 0; k < n; ++k) U[k] = rf();
+    double D[36], Dinv[36];
+    for (int r = 0; r < n; ++r)
+      for (int c = r; c < n; ++c) D[r * n + c] = D[c * n + r] = uni() + (r == c ? 4.0 : 0.0);
+    ASSERT_TRUE(spd_inverse(D, n, Dinv));
+    Mat6<double> ref = IA;
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c)
+        for (int k = 0; k < n; ++k)
+          for (int l = 0; l < n; ++l) {
+            double ur[6], uc[6];
+            store(U[k], ur), store(U[l], uc);
+            ref(r, c) -= ur[r] * Dinv[k * n + l] * uc[c];
+          }
+    const Mat6<double> Ia = articulated_residual(n, IA, U, Dinv);
+    Mat6<double> sum = IA;
+    add_articulated_residual(n, IA, U, Dinv, sum);
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) {
+        EXPECT_NEAR(Ia(r, c), ref(r, c), 1e-12) << n;
+        EXPECT_NEAR(sum(r, c), IA(r, c) + ref(r, c), 1e-12) << n;
+      }
   }
 }
 

@@ -67,52 +67,47 @@ template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const 
   return joint_inertia(b.nv, Sc, IA, U, Dinv);
 }
 
-// U D⁻¹ Uᵀ = Σ_k W_k U_kᵀ with W_k = Σ_l U_l D⁻¹(l, k): the n factor pairs as
-// 6-arrays (k < n)
-template <typename S> RBD_HD void articulated_factors(int n, const Force<S>* U, const S* Dinv, S (*W)[6], S (*Ua)[6]) {
-  for (int k = 0; k < n; ++k) store(U[k], Ua[k]);
-  for (int k = 0; k < n; ++k) {
-    for (int r = 0; r < 6; ++r) W[k][r] = S(0);
-    for (int l = 0; l < n; ++l) {
-      const S d = Dinv[l * n + k];
-      for (int r = 0; r < 6; ++r) W[k][r] += Ua[l][r] * d;
-    }
-  }
-}
-
-// out(r, c) = IA(r, c) - Σ_k W_k[r] U_k[c] for c >= r; with add, out(r, c) +=
-// that and out(c, r) += it too; without, both are assigned. (IA - U D⁻¹ Uᵀ is
-// symmetric: the upper triangle is computed and mirrored)
+// out <- IA - U D⁻¹ Uᵀ = IA - Σ_k W_k U_kᵀ, W_k = Σ_l U_l D⁻¹(l, k) (n joint DoFs),
+// or out += it with add. The result is symmetric: the 21 entries of the upper
+// triangle are computed and each written to both places. Every array is
+// indexed by constants once the loops over r and c unroll (registers on a
+// GPU): W_k and U_k live one k at a time
 template <typename S>
 RBD_HD void articulated_update(int n, const Mat6<S>& IA, const Force<S>* U, const S* Dinv, bool add, Mat6<S>& out) {
-  S W[6][6], Ua[6][6];
-  articulated_factors(n, U, Dinv, W, Ua);
-  if (n == 1) {  // the common case, with the k loop gone
+  auto put = [&](int r, int c, const S& x) {
+    if (add) {
+      out(r, c) += x;
+      if (c != r) out(c, r) += x;
+    } else {
+      out(r, c) = x;
+      out(c, r) = x;
+    }
+  };
+  if (n == 1) {  // the common case: W = U D⁻¹, one term per entry
+    S u[6], wu[6];
+    store(U[0], u);
+    for (int r = 0; r < 6; ++r) wu[r] = u[r] * Dinv[0];
     for (int r = 0; r < 6; ++r)
-      for (int c = r; c < 6; ++c) {
-        const S x = IA(r, c) - W[0][r] * Ua[0][c];
-        if (add) {
-          out(r, c) += x;
-          if (c != r) out(c, r) += x;
-        } else {
-          out(r, c) = x;
-          out(c, r) = x;
-        }
-      }
+      for (int c = r; c < 6; ++c) put(r, c, IA(r, c) - wu[r] * u[c]);
     return;
   }
+  S x[6][6];
   for (int r = 0; r < 6; ++r)
-    for (int c = r; c < 6; ++c) {
-      S x = IA(r, c);
-      for (int k = 0; k < n; ++k) x -= W[k][r] * Ua[k][c];
-      if (add) {
-        out(r, c) += x;
-        if (c != r) out(c, r) += x;
-      } else {
-        out(r, c) = x;
-        out(c, r) = x;
-      }
+    for (int c = r; c < 6; ++c) x[r][c] = IA(r, c);
+  for (int k = 0; k < n; ++k) {
+    S Wk[6] = {S(0), S(0), S(0), S(0), S(0), S(0)}, Uk[6];
+    store(U[k], Uk);
+    for (int l = 0; l < n; ++l) {
+      S Ul[6];
+      store(U[l], Ul);
+      const S d = Dinv[l * n + k];
+      for (int r = 0; r < 6; ++r) Wk[r] += Ul[r] * d;
     }
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) x[r][c] -= Wk[r] * Uk[c];
+  }
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) put(r, c, x[r][c]);
 }
 
 // Ia = IA - U D⁻¹ Uᵀ: the articulated inertia seen through the joint

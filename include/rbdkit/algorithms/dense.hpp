@@ -69,12 +69,13 @@ template <typename S> RBD_HD bool spd_inverse(S* A, int n, S* Ainv) {
 // overlapping either. Every entry is summed over k = 0..n-1 in order from 0
 // and negated at the end, so the result is the same on every path below.
 //
-// On the host, for double and float: register blocks of 2 rows x 4 vectors
-// (GCC/clang vector extensions, 16-byte vectors: SSE2 with no -march), whose
-// accumulators stay in registers over k. Left to itself the compiler
-// vectorises the k loop as a reduction instead, which costs twice the
-// instructions. Elsewhere (device code, SIMD packs, dual numbers): the plain
-// triple loop.
+// In host code that nvcc does not see, for double and float: register blocks
+// of 2 rows x 4 vectors (GCC/clang vector extensions, 16-byte vectors, so
+// 2 x 8 doubles or 2 x 16 floats: SSE2 with no -march), whose accumulators
+// stay in registers over k. Left to itself the compiler vectorises the k loop
+// as a reduction instead, which costs twice the instructions. Elsewhere
+// (CUDA sources, SIMD packs, dual numbers): the plain triple loop, the same
+// operations in the same order.
 template <typename S> RBD_HD void neg_matmul_plain(const S* A, const S* B, int n, int cols, S* out) {
   for (int r = 0; r < n; ++r)
     for (int c = 0; c < cols; ++c) {
@@ -84,7 +85,7 @@ template <typename S> RBD_HD void neg_matmul_plain(const S* A, const S* B, int n
     }
 }
 
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDA_ARCH__)
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
 namespace detail {
 // rows [r, r + R) x columns [c, c + NV·L) of out = -A B, NV vectors of L lanes per row
 template <typename S, int R, int NV>
@@ -129,7 +130,7 @@ inline void neg_matmul_rows(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, in
 
 template <typename S> RBD_HD void neg_matmul(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, int n, int cols,
                                              S* RBD_RESTRICT out) {
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDA_ARCH__)
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     int r = 0;
     for (; r + 2 <= n; r += 2) detail::neg_matmul_rows<S, 2>(A, B, n, cols, r, out);

@@ -402,14 +402,14 @@ struct FreeJoint : JointDefaults<FreeJoint> {
 // ---- the dispatch
 
 // f(JT{}) for the joint type JT of `type` (JointType); every branch returns the same type
-// (tests in the order of how common the types are, the revolute first: a chain
-// of compares that the branch predictor learns per body, no jump table)
+// (a chain of compares, the revolute first, that the branch predictor learns
+// per body: no jump table)
 template <typename F> RBD_HD decltype(auto) visit_joint(int type, F&& f) {
   if (type == kRevolute) return f(RevoluteJoint{});
-  if (type == kFree) return f(FreeJoint{});
   if (type == kPrismatic) return f(PrismaticJoint{});
+  if (type == kHelical) return f(HelicalJoint{});
   if (type == kSpherical) return f(SphericalJoint{});
-  return f(HelicalJoint{});  // kHelical
+  return f(FreeJoint{});  // kFree
 }
 
 // sizes of a joint type
