@@ -134,7 +134,8 @@ inline double float32_bound(const ops::OpSpec& op) {
   // central differences with eps = 1e-5 in float32: about two digits are left
   if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 1e-1;
   if (n == "forward_dynamics_parameter_gradient") return 2e-3;  // M⁻¹ applied, as minv's family
-  if (f == "fdsva_so" || f == "integrator_hessian") return 5e-2;
+  // cond(M)²·ε_float32: up to 9.3e-2 on the ill-conditioned floating planar model (200 random states)
+  if (f == "fdsva_so" || f == "integrator_hessian") return 1.5e-1;
   if (f == "osc") return 2e-2;  // (J M⁻¹ Jᵀ)⁻¹: cond(M) and cond(J M⁻¹ Jᵀ) both
   return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
 }
