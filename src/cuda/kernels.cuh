@@ -73,10 +73,11 @@ template <typename T> RBD_HD bool all_finite(const T* x, long n) {
 }
 
 // the value checks of ops::check_call (src/ops/ops.cpp) on sample s's arrays, as a predicate, in
-// double as there (the same within_bound and configuration_within_bounds, model/input_bounds.hpp): finite values of magnitude at most the dtype's bound, non-negative weights,
-// ordered bounds, configurations with bounded angles and unit quaternions. For device arrays,
-// which the host cannot read without a copy; a sample that fails is not computed, and the host
-// words the error from a copy of the inputs (CudaEngine::Impl::fail_inputs)
+// double as there (the same within_bound and configuration_within_bounds, model/input_bounds.hpp):
+// finite values of magnitude at most the dtype's bound, non-negative weights, ordered bounds,
+// configurations with bounded angles and unit quaternions. For device arrays, which the host
+// cannot read without a copy; a sample that fails is not computed, and the host words the error
+// from a copy of the inputs (CudaEngine::Impl::fail_inputs)
 template <typename T> RBD_HD constexpr double input_bound() { return sizeof(T) == 4 ? kMaxInputF32 : kMaxInput; }
 template <typename T> RBD_HD constexpr double angle_bound() { return sizeof(T) == 4 ? kMaxAngleF32 : kMaxAngle; }
 template <typename T> RBD_HD bool bounded_values(const T* x, long n) { return within_bound(x, n, input_bound<T>()); }

@@ -9,7 +9,7 @@
 
 #include <math.h>
 
-#include "rbdkit/model/joint.hpp"
+#include "rbdkit/model/joint_types.hpp"
 
 namespace rbd {
 
@@ -36,8 +36,9 @@ RBD_HD bool configuration_within_bounds(const BodyDesc<S>* b, int nb, int nq, co
   for (int i = 0; i < nb; ++i) {
     if (b[i].mimic) continue;
     if (b[i].type == kRevolute || b[i].type == kHelical) ok &= fabs(static_cast<double>(q[b[i].q_idx])) <= angle;
-    if (b[i].type == kFree || b[i].type == kSpherical) {
-      const T* h = q + b[i].q_idx + (b[i].type == kFree ? 3 : 0);
+    const int r = quat_offset(b[i]);  // a free or ball joint's quaternion
+    if (r >= 0) {
+      const T* h = q + r;
       double n2 = 0;
       for (int k = 0; k < 4; ++k) {
         const double x = h[k];

@@ -220,7 +220,6 @@ template <typename S> struct InertiaRate {
   Vec3<S> beta;
   Mat3<S> C;  // symmetric, both triangles stored
 
-  RBD_HD static InertiaRate zero() { return {Vec3<S>::zero(), Mat3<S>::zero()}; }
   // B m, read as a force:  (-β × m_ang, β × m_lin + C m_ang)
   RBD_HD Force<S> operator*(const Motion<S>& m) const { return {cross(m.ang, beta), cross(beta, m.lin) + C * m.ang}; }
   RBD_HD InertiaRate& operator+=(const InertiaRate& o) {
