@@ -17,7 +17,8 @@ on their device), CPU tensors are copied to the device and back.
 
 Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/∂f_ext), forward_dynamics
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
-integrator and plant_step for every scheme ([A | B]), and, with respect to q,
+integrator and plant_step for every scheme ([A | B]; ∂x⁺/∂f_ext = B J_bᵀ for the one-stage
+schemes euler, semi_implicit_euler and constant_acceleration), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
 end_effector_pose, inverse_dynamics_regressor (q, qd, qdd; so
 inverse_dynamics_with_parameters differentiates in the inertial parameters
@@ -54,12 +55,12 @@ except ImportError as e:  # an optional dependency
     raise ImportError("rbdkit.torch needs PyTorch: pip install torch, then import rbdkit.torch again") from e
 
 from . import _core
-from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, F_EXT_RULES, GAUSS_NEWTON_RULES,
-                          add_operation_methods, call_keywords, configuration_jacobians, elementwise_arguments,
+from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
+                          call_keywords, check_step_f_ext, configuration_jacobians, elementwise_arguments,
                           elementwise_vjp, gauss_newton_value_vjp, gravity_alias, half_q,
-                          inverse_dynamics_with_parameters,
-                          mujoco_coordinates, mujoco_maps, one_dof_coordinates, quaternion_joints, regressor_jacobians,
-                          rotation, transpose_jacobians, with_derivative_algorithms)
+                          inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
+                          quaternion_joints, regressor_jacobians, rotation, transpose_jacobians,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations()}
@@ -421,9 +422,8 @@ def _check_differentiable(h, op, kw):
     if op == "ee_pos_cost" and grad("ee_offset"):
         raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
                                   "pass ee_offset.detach()")
-    if op in _RULES and op not in F_EXT_RULES and grad("f_ext"):
-        raise NotImplementedError(f"rbdkit.torch: {op}'s derivative with respect to f_ext is not available "
-                                  f"yet (the dynamics' is: {', '.join(F_EXT_RULES)}); pass f_ext.detach()")
+    if op in ("integrator", "plant_step") and grad("f_ext"):  # the dynamics' rules take f_ext always
+        check_step_f_ext("torch", h, op, kw)
 
 
 # ---------------------------------------------------------------- the coordinates' maps
@@ -509,9 +509,12 @@ def _step_vjp(h, op, call, kw, grads, outs):
     g = _mtv(AB, lam)  # [g_q (tangent); g_qd; g_u]
     q = call["q"] if op == "integrator" else call["x"][..., :nq]
     gq = _tangent_map(h, q, g[..., :nv], "pinv_T", mujoco)
-    if op == "integrator":
-        return {"q": gq, "qd": g[..., nv:2 * nv], "u": g[..., 2 * nv:]}
-    return {"x": torch.cat([gq, g[..., nv:2 * nv]], -1), "u": g[..., 2 * nv:]}
+    out = {"q": gq, "qd": g[..., nv:2 * nv]} if op == "integrator" else {"x": torch.cat([gq, g[..., nv:2 * nv]], -1)}
+    out["u"] = g[..., 2 * nv:]
+    if "f_ext" in call and call["f_ext"].requires_grad:  # one stage: δu = -Σ_b ∂τ/∂f_b δf_b (checked before)
+        Df = h._values("f_ext_gradient", {"q": q.detach()})[0]  # ∂τ/∂f_b = -J_bᵀ (..., nb, nv, 6)
+        out["f_ext"] = -torch.einsum("...bvk,...v->...bk", Df, out["u"])
+    return out
 
 
 def _configuration_vjp(h, op, call, kw, grads, outs):

@@ -162,6 +162,38 @@ def test_external_force_gradients_against_central_differences(name, floating):
             < 1e-6, op
 
 
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
+def test_step_external_force_gradients_against_central_differences(name, floating):
+    # the one-stage steps read f_ext through a(q, qd, u + Σ_b J_bᵀ f_b): ∂x⁺/∂f_b = B J_bᵀ. Reverse mode
+    # in (u, f) together, forward mode over a batch of forces, against central differences of the
+    # NumPy handle's x⁺ (coordinates); the multi-stage schemes refuse
+    h = handle(name, floating)
+    q, qd, u = (a[0] for a in states(h, 1, seed=8))
+    f = np.random.default_rng(9).standard_normal((h.nb, 6))
+    w = np.random.default_rng(10).standard_normal(h.nq + h.nv)
+    x = np.concatenate([q, qd])
+    for scheme in ("euler", "semi_implicit_euler", "constant_acceleration"):
+        for op in ("integrator", "plant_step"):
+            state = (q, qd) if op == "integrator" else (x,)
+            step = lambda u, f: getattr(h, op)(*state, u, 0.01, scheme, f_ext=f)  # noqa: E731
+            step_np = lambda u, f: getattr(h.numpy, op)(*state, u, 0.01, scheme,  # noqa: E731
+                                                        f_ext=f.reshape(h.nb, 6))
+            gu, gf = jax.jit(jax.grad(lambda u, f: jnp.dot(w, step(u, f)), argnums=(0, 1)))(u, f)
+            assert rel(gu, w @ central_difference(lambda z: step_np(z, f), u)) < 1e-6, (scheme, op)
+            assert rel(np.asarray(gf).ravel(), w @ central_difference(lambda z: step_np(u, z), f.ravel())) < 1e-6, \
+                (scheme, op)
+            J = jax.jacfwd(lambda f: step(u, f))(np.stack([f, -f]))  # (2, nx, 2, nb, 6)
+            assert rel(np.asarray(J[1, :, 1]).reshape(h.nq + h.nv, -1),
+                       central_difference(lambda z: step_np(u, z), -f.ravel())) < 1e-6, (scheme, op)
+    for scheme in ("midpoint", "rk4", "trapezoidal"):
+        with pytest.raises(NotImplementedError, match=f"one-stage schemes .*, not '{scheme}'"):
+            jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, scheme, f_ext=f)))(f)
+    if floating:  # MuJoCo's coordinates on a model with quaternions: refused, by name
+        qm = h.numpy.state_to_mujoco(x)
+        with pytest.raises(NotImplementedError, match="f_ext in MuJoCo's output convention"):
+            jax.grad(lambda f: jnp.sum(h.plant_step(qm, u, 0.01, f_ext=f, output_convention="mujoco")))(f)
+
+
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
 def test_step_gradients_in_mujoco_coordinates(name, floating):
     # output_convention="mujoco" on models with quaternions: x in MuJoCo's qpos/qvel, [A | B] along
@@ -335,8 +367,9 @@ def test_operations_without_a_rule_and_f_ext_say_so():
         jax.grad(lambda q: jnp.sum(h.coriolis_matrix(q, qd)))(q)
     with pytest.raises(NotImplementedError, match="end_effector_pose is differentiable with respect to q only"):
         jax.grad(lambda o: jnp.sum(h.end_effector_pose(q, ee_offsets=o)))(np.zeros((1, 3)))
-    with pytest.raises(NotImplementedError, match="f_ext is not available yet"):
-        jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, f_ext=f)))(np.zeros((h.nb, 6)))
+    with pytest.raises(NotImplementedError, match=r"one-stage schemes \(euler, semi_implicit_euler, "
+                                                  r"constant_acceleration\), not 'rk4'"):
+        jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, "rk4", f_ext=f)))(np.zeros((h.nb, 6)))
     # MuJoCo's coordinates on a model with quaternions: the Gauss–Newton costs' values, but no derivative
     hq = handle("hyq", True)
     qm = hq.numpy.state_to_mujoco(np.concatenate(states(hq, 1)[:2], -1)[0])[:hq.nq]
