@@ -7,15 +7,14 @@ jax.numpy or torch; both have stack over an axis and the same indexing)."""
 import numpy as np
 
 from ._handle import ALGORITHMS, OPERATION_ALGORITHM, Handle as NumpyHandle
-from ._integrators import INTEGRATORS
 
 # the operations with a derivative rule, and the algorithms their rule calls
 DERIVATIVE_ALGORITHMS = {
     "inverse_dynamics": ("inverse_dynamics_gradient", "crba", "f_ext_gradient"),
     "forward_dynamics": ("forward_dynamics_gradient", "f_ext_gradient"),
     "aba": ("forward_dynamics_gradient", "f_ext_gradient"),
-    "integrator": ("integrator_gradient", "f_ext_gradient"),
-    "plant_step": ("integrator_gradient", "f_ext_gradient"),
+    "integrator": ("integrator_gradient",),
+    "plant_step": ("integrator_gradient",),
     "crba": ("idsva_so",),
     "minv": ("idsva_so",),
     "com": (),
@@ -29,13 +28,8 @@ DERIVATIVE_ALGORITHMS = {
     "inverse_dynamics_regressor": ("regressor_gradient",),
 }
 # the operations whose rule covers f_ext (f_ext_gradient: -J_bᵀ for the torques, M⁻¹ J_bᵀ for the
-# accelerations, with J_b body b's Jacobian in its own frame); the steps' for F_EXT_STEP_SCHEMES
+# accelerations, with J_b body b's Jacobian in its own frame); the steps' is integrator_f_ext_gradient
 F_EXT_RULES = ("inverse_dynamics", "forward_dynamics", "aba")
-# the integrators whose step reads f_ext only through the acceleration at the initial state (one
-# stage). There u and f_ext act as the one torque u + Σ_b J_b(q)ᵀ f_b, so ∂x⁺/∂f_b = B J_b(q)ᵀ =
-# -B ∂τ/∂f_b (B = ∂x⁺/∂u, ∂τ/∂f_b from f_ext_gradient), exactly. The multi-stage schemes evaluate
-# J_b at each stage's configuration, which [A | B] does not carry.
-F_EXT_STEP_SCHEMES = ("euler", "semi_implicit_euler", "constant_acceleration")
 # the operations of the configuration alone whose rule is configuration_jacobians' (q's tangent only)
 CONFIGURATION_RULES = ("crba", "minv", "com", "frame_placement", "frame_jacobian", "end_effector_pose")
 
@@ -72,20 +66,14 @@ def add_operation_methods(cls, call):
         setattr(cls, op, make(op))
 
 
-def check_step_f_ext(module, h, op, call):
-    """refuse a derivative of a step (integrator, plant_step) with respect to f_ext that no rule gives:
-    a multi-stage scheme, or MuJoCo's coordinates on a model with quaternions"""
-    scheme = call.get("integrator_type", INTEGRATORS[0])
-    if not isinstance(scheme, str) and 0 <= int(scheme) < len(INTEGRATORS):
-        scheme = INTEGRATORS[int(scheme)]
-    if scheme not in F_EXT_STEP_SCHEMES:
-        raise NotImplementedError(f"rbdkit.{module}: {op}'s derivative with respect to f_ext is available for the "
-                                  f"one-stage schemes ({', '.join(F_EXT_STEP_SCHEMES)}), not {scheme!r} (its stages "
-                                  f"apply the forces at other configurations); treat f_ext as a constant there")
-    if mujoco_coordinates(h, call):
-        raise NotImplementedError(f"rbdkit.{module}: {op}'s derivative with respect to f_ext in MuJoCo's output "
-                                  f"convention on a model with free-flyer or spherical joints is not available; "
-                                  f"differentiate in the Pinocchio convention (output_convention='pinocchio')")
+def step_with_forces(op, call, nq):
+    """the call of integrator_f_ext_gradient (x⁺, [A | B] and ∂x⁺/∂f_ext) for a call of integrator or
+    plant_step (x = [q; qd])"""
+    if op == "integrator":
+        return call
+    c = {k: v for k, v in call.items() if k != "x"}
+    c["q"], c["qd"] = call["x"][..., :nq], call["x"][..., nq:]
+    return c
 
 
 def mujoco_coordinates(h, call):

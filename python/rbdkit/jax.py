@@ -22,8 +22,7 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
     forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one
                             call), ∂qdd/∂f_ext = M⁻¹ J_bᵀ (f_ext_gradient)
     integrator, plant_step  [A | B] = ∂x⁺/∂(x, u) (integrator_gradient / plant_step_gradient), every scheme;
-                            ∂x⁺/∂f_ext = B J_bᵀ for euler, semi_implicit_euler and
-                            constant_acceleration (one stage: f_ext acts as the torque Σ_b J_bᵀ f_b)
+                            ∂x⁺/∂f_ext (integrator_f_ext_gradient)
     crba, minv              ∂M/∂q (idsva_so's dM_dq); ∂M⁻¹ = -M⁻¹ ∂M M⁻¹
     com                     jacobian_com
     frame_placement         ∂R = R [J_ω δ]x, ∂p = R J_v δ from the frame's LOCAL Jacobian
@@ -44,8 +43,7 @@ transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
                             values, and a gradient through them raises
 
 Every other operation computes values only; differentiating through one
-raises an error that names it (as does f_ext in the multi-stage integrators and
-plant_step, and in MuJoCo's convention on a model with quaternions).
+raises an error that names it.
 
 Inertial parameters. A handle's model is fixed, but the inverse dynamics is
 linear in the inertial parameters: τ = Y(q, qd, qdd) π, with Y the
@@ -110,10 +108,11 @@ except ImportError as e:  # an optional dependency
 
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
-                          apply_jacobians, call_keywords, check_step_f_ext, configuration_jacobians,
+                          apply_jacobians, call_keywords, configuration_jacobians,
                           elementwise_arguments, elementwise_jvp, gauss_newton_value_vjp, gravity_alias, half_q,
                           inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
-                          quaternion_joints, regressor_jacobians, rotation, with_derivative_algorithms)
+                          quaternion_joints, regressor_jacobians, rotation, step_with_forces,
+                          with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
 _TARGET = "rbdkit_op"
@@ -532,15 +531,17 @@ def _dynamics_jvp(h, op, call, names, tangents):
 
 def _step_jvp(h, op, call, names, tangents):
     """integrator (q, qd, u -> x⁺) and plant_step (x, u -> x⁺): [A | B] in the tangent space (MuJoCo's
-    under its convention: [A | B] is then along mj_integratePos); f_ext for the one-stage schemes, as
-    the torque δu = -Σ_b ∂τ/∂f_b δf_b (_frameworks.F_EXT_STEP_SCHEMES)"""
+    under its convention: [A | B] is then along mj_integratePos), and ∂x⁺/∂f_ext when f_ext has a
+    tangent (integrator_f_ext_gradient, one call for the three)"""
     tf = dict(zip(names, tangents)).get("f_ext")
     with_f = tf is not None and not _zero(tf)
-    if with_f:
-        check_step_f_ext("jax", h, op, call)
     mujoco = mujoco_coordinates(h, call)
-    grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
-    x_next, AB = h._values(grad_op, (), call, outputs=0b11)
+    if with_f:
+        x_next, AB, Df = h._values("integrator_f_ext_gradient", (), step_with_forces(op, call, h.nq),
+                                   outputs=0b111)
+    else:
+        grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
+        x_next, AB = h._values(grad_op, (), call, outputs=0b11)
     nq, nv = h.nq, h.nv
     batch = AB.shape[:-2]  # the call's batch shape: every tangent broadcast to it
     t = {n: jnp.broadcast_to(_dense(tn, call[n]), batch + jnp.shape(call[n])[-1:]) for n, tn in zip(names, tangents)
@@ -549,12 +550,10 @@ def _step_jvp(h, op, call, names, tangents):
         q, tq, tqd = call["q"], t["q"], t["qd"]
     else:
         q, tq, tqd = call["x"][..., :nq], t["x"][..., :nq], t["x"][..., nq:]
-    tu = t["u"]
-    if with_f:
-        Df = h._values("f_ext_gradient", (), {"q": q})[0]  # ∂τ/∂f_b = -J_bᵀ (..., nb, nv, 6)
-        tu = tu - jnp.broadcast_to(jnp.einsum("...bvk,...bk->...v", Df, tf), tu.shape)
-    dx = jnp.concatenate([_tangent_map(h, q, tq, "to_tangent", mujoco), tqd, tu], -1)
+    dx = jnp.concatenate([_tangent_map(h, q, tq, "to_tangent", mujoco), tqd, t["u"]], -1)
     d = _mv(AB, dx)  # [δq⁺ in the tangent space; δqd⁺]
+    if with_f:  # Df (..., 2nv, nb, 6)
+        d = d + jnp.einsum("...rbk,...bk->...r", Df, tf)
     dnext = jnp.concatenate([_tangent_map(h, x_next[..., :nq], d[..., :nv], "from_tangent", mujoco), d[..., nv:]],
                             -1)
     x_next, dnext = _vary_like([x_next, dnext], [x_next, dnext])

@@ -17,8 +17,8 @@ on their device), CPU tensors are copied to the device and back.
 
 Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/∂f_ext), forward_dynamics
 and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
-integrator and plant_step for every scheme ([A | B]; ∂x⁺/∂f_ext = B J_bᵀ for the one-stage
-schemes euler, semi_implicit_euler and constant_acceleration), and, with respect to q,
+integrator and plant_step for every scheme ([A | B], and ∂x⁺/∂f_ext from
+integrator_f_ext_gradient), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
 end_effector_pose, inverse_dynamics_regressor (q, qd, qdd; so
 inverse_dynamics_with_parameters differentiates in the inertial parameters
@@ -56,10 +56,10 @@ except ImportError as e:  # an optional dependency
 
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
-                          call_keywords, check_step_f_ext, configuration_jacobians, elementwise_arguments,
+                          call_keywords, configuration_jacobians, elementwise_arguments,
                           elementwise_vjp, gauss_newton_value_vjp, gravity_alias, half_q,
                           inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
-                          quaternion_joints, regressor_jacobians, rotation, transpose_jacobians,
+                          quaternion_joints, regressor_jacobians, rotation, step_with_forces, transpose_jacobians,
                           with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
@@ -422,8 +422,6 @@ def _check_differentiable(h, op, kw):
     if op == "ee_pos_cost" and grad("ee_offset"):
         raise NotImplementedError("rbdkit.torch: ee_pos_cost is not differentiable with respect to ee_offset; "
                                   "pass ee_offset.detach()")
-    if op in ("integrator", "plant_step") and grad("f_ext"):  # the dynamics' rules take f_ext always
-        check_step_f_ext("torch", h, op, kw)
 
 
 # ---------------------------------------------------------------- the coordinates' maps
@@ -501,9 +499,13 @@ def _dynamics_vjp(h, op, call, kw, grads, outs):
 def _step_vjp(h, op, call, kw, grads, outs):
     ct = grads[0]
     nq, nv = h.nq, h.nv
-    grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
     args = dict(kw, **{k: (v.detach() if k == "f_ext" else v) for k, v in call.items()})
-    x_next, AB = h._values(grad_op, args, outputs=0b11)
+    with_f = "f_ext" in call and call["f_ext"].requires_grad
+    if with_f:  # x⁺, [A | B] and ∂x⁺/∂f_ext (..., 2nv, nb, 6) in one call
+        x_next, AB, Df = h._values("integrator_f_ext_gradient", step_with_forces(op, args, nq), outputs=0b111)
+    else:
+        grad_op = "integrator_gradient" if op == "integrator" else "plant_step_gradient"
+        x_next, AB = h._values(grad_op, args, outputs=0b11)
     mujoco = mujoco_coordinates(h, kw)  # (then [A | B] is along mj_integratePos)
     lam = torch.cat([_tangent_map(h, x_next[..., :nq], ct[..., :nq], "transpose", mujoco), ct[..., nq:]], -1)
     g = _mtv(AB, lam)  # [g_q (tangent); g_qd; g_u]
@@ -511,9 +513,8 @@ def _step_vjp(h, op, call, kw, grads, outs):
     gq = _tangent_map(h, q, g[..., :nv], "pinv_T", mujoco)
     out = {"q": gq, "qd": g[..., nv:2 * nv]} if op == "integrator" else {"x": torch.cat([gq, g[..., nv:2 * nv]], -1)}
     out["u"] = g[..., 2 * nv:]
-    if "f_ext" in call and call["f_ext"].requires_grad:  # one stage: δu = -Σ_b ∂τ/∂f_b δf_b (checked before)
-        Df = h._values("f_ext_gradient", {"q": q.detach()})[0]  # ∂τ/∂f_b = -J_bᵀ (..., nb, nv, 6)
-        out["f_ext"] = -torch.einsum("...bvk,...v->...bk", Df, out["u"])
+    if with_f:
+        out["f_ext"] = torch.einsum("...rbk,...r->...bk", Df, lam)
     return out
 
 

@@ -174,6 +174,8 @@ long scratch_values(const OpSpec& op, const Model& m) {
     case kScratchEePosCost: return ee_pos_cost_scratch(m.nq, m.nv);
     case kScratchD2Integrate: return 2L * (2 * m.nq + 2 * m.nv + static_cast<long>(m.nv) * m.nv);
     case kScratchEeHessianDual: return ee_hessian_dual_scratch(m.nb(), m.nq, m.nv);
+    case kScratchIntegratorFExtGrad:
+      return integrator_fext_gradient_scratch_values(m.nq, m.nv, m.nb()) + m.nq + m.nv + 6L * m.nv * m.nv;
     case kScratchIntegratorHessian:
       return integrator_hessian_scratch_values(m.nq, m.nv) + m.nq + m.nv + 6L * m.nv * m.nv;
   }

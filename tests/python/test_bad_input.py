@@ -46,6 +46,7 @@ METHODS = {
     "inverse_dynamics_gradient_bpass_dqd": ("q", "qd", "qdd", "S", "dA_dqd"),
     "integrator": ("q", "qd", "u", "f_ext"),
     "integrator_gradient": ("q", "qd", "u", "f_ext"),
+    "integrator_f_ext_gradient": ("q", "qd", "u", "f_ext"),
     "inverse_dynamics_regressor": ("q", "qd", "qdd"),
     "inverse_dynamics_regressor_gradient": ("q", "qd", "qdd"),
     "forward_dynamics_parameter_gradient": ("q", "qd", "u"),
@@ -119,8 +120,9 @@ BOUND_KINDS = ("lower_q", "upper_q", "lower_v", "upper_v")
 
 def kind_of(method, name):
     return KIND_OF.get((method, name)) or KIND[name]
-OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("plant_step", "f_ext"),
-            ("plant_step_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"), ("inverse_dynamics_gradient", "f_ext"),
+OPTIONAL = {("integrator", "f_ext"), ("integrator_gradient", "f_ext"), ("integrator_f_ext_gradient", "f_ext"),
+            ("plant_step", "f_ext"), ("plant_step_gradient", "f_ext"), ("inverse_dynamics_gradient", "qdd"),
+            ("inverse_dynamics_gradient", "f_ext"),
             ("forward_dynamics_gradient", "f_ext"), ("inverse_dynamics_fpass", "qdd"),
             ("inverse_dynamics_fpass", "f_ext"), ("inverse_dynamics_gradient_fpass_dq", "qdd"),
             ("inverse_dynamics_gradient_fpass_dqd", "qdd"), ("inverse_dynamics_gradient_bpass_dq", "qdd"),
@@ -185,7 +187,8 @@ def valid_args(model, method):
 def call(rbd, method, args):
     if method == "time_per_call":
         return rbd.time_per_call("crba", iters=1, **args)
-    if method in ("integrator", "integrator_gradient", "plant_step", "plant_step_gradient", "plant_step_hessian"):
+    if method in ("integrator", "integrator_gradient", "integrator_f_ext_gradient", "plant_step", "plant_step_gradient",
+                  "plant_step_hessian"):
         return getattr(rbd, method)(dt=0.01, integrator_type="rk4", **args)
     if method in BARRIERS:
         return getattr(rbd, method)(mu=0.1, **args)

@@ -58,6 +58,7 @@ CALLS = {
     "integrator": (("q", "qd", "u", "dt"), {"integrator_type": "rk4"}),
     "plant_step": (("x", "u", "dt"), {"integrator_type": "midpoint"}),
     "integrator_gradient": (("q", "qd", "u", "dt"), {"integrator_type": "rk4"}),
+    "integrator_f_ext_gradient": (("q", "qd", "u", "dt"), {"integrator_type": "trapezoidal"}),
     "plant_step_gradient": (("x", "u", "dt"), {"integrator_type": "semi_implicit_euler"}),
     "plant_step_hessian": (("x", "u", "dt"), {"integrator_type": "euler"}),
     "quadratic_state_cost": (("x", "x_des", "Q"), {}), "quadratic_state_cost_tangent": (("x", "x_des", "Q2"), {}),
@@ -322,7 +323,7 @@ def same_error(f, g):
 
 
 def bad_input_call(obj, method, args):
-    if method in ("integrator", "integrator_gradient"):
+    if method in ("integrator", "integrator_gradient", "integrator_f_ext_gradient"):
         return getattr(obj, method)(dt=0.01, integrator_type="rk4", **args)
     return getattr(obj, method)(**args)
 

@@ -117,6 +117,61 @@ def test_gradient_by_finite_differences(ref, scheme):
     np.testing.assert_array_equal(rbd.plant_step_gradient(np.concatenate([q, v]), u, dt, scheme, f_ext=fext), AB)
 
 
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_external_force_gradient_by_finite_differences(ref, scheme):
+    # ∂x⁺/∂f_ext (2nv, nb, 6) against central differences in f (Euclidean), in the tangent space at x⁺
+    rbd = rbdkit.RBD(ref.model)
+    m, nv, nb = ref.model, ref.model.nv, ref.model.nb
+    q, v, u, fext = state(m, 4)
+    dt = 0.02
+    D = rbd.integrator_f_ext_gradient(q, v, u, dt, scheme, f_ext=fext)
+    assert D.shape == (2 * nv, nb, 6)
+    x0 = rbd.integrator(q, v, u, dt, scheme, f_ext=fext)
+
+    def tangent(x):
+        return np.concatenate([rbd.difference(x0[:m.nq], x[:m.nq]), x[m.nq:] - x0[m.nq:]])
+
+    eps = 1e-5
+    F = np.stack([(tangent(rbd.integrator(q, v, u, dt, scheme, f_ext=fext + eps * e.reshape(nb, 6)))
+                   - tangent(rbd.integrator(q, v, u, dt, scheme, f_ext=fext - eps * e.reshape(nb, 6)))) / (2 * eps)
+                  for e in np.eye(6 * nb)], -1)
+    assert_close(D.reshape(2 * nv, -1), F, f"{scheme} ∂x⁺/∂f_ext vs FD", 1e-6)
+    # without f_ext: the derivative at zero forces (the first two bodies' columns)
+    D0 = rbd.integrator_f_ext_gradient(q, v, u, dt, scheme)
+    x0 = rbd.integrator(q, v, u, dt, scheme)
+    F0 = np.stack([(tangent(rbd.integrator(q, v, u, dt, scheme, f_ext=eps * e.reshape(nb, 6)))
+                    - tangent(rbd.integrator(q, v, u, dt, scheme, f_ext=-eps * e.reshape(nb, 6)))) / (2 * eps)
+                   for e in np.eye(6 * nb)[:12]], -1)
+    assert_close(D0.reshape(2 * nv, -1)[:, :12], F0, f"{scheme} ∂x⁺/∂f_ext at f = 0 vs FD", 1e-6)
+
+
+@pytest.mark.parametrize("scheme", ("euler", "rk4"))
+@pytest.mark.parametrize("name", ("hyq", "spherical"))
+def test_external_force_gradient_in_mujoco_coordinates(name, scheme):
+    # output_convention="mujoco": x, u in MuJoCo's qpos/qvel layout and frames, rows along
+    # mj_integratePos's tangent; f_ext stays body-local
+    path = os.path.join(ROBOTS_DIR if name == "hyq" else URDF_DIR, name + ".urdf")
+    m = rbdkit.Model.from_urdf(path, floating_base=name == "hyq")
+    rbd = rbdkit.RBD(m)
+    q, v, u, fext = state(m, 5)
+    x = rbd.state_to_mujoco(np.concatenate([q, v]))
+    qm, vm = x[:m.nq], x[m.nq:]
+    dt, nv, nb = 0.02, m.nv, m.nb
+    D = rbd.integrator_f_ext_gradient(qm, vm, u, dt, scheme, f_ext=fext, output_convention="mujoco")
+    x0 = rbd.integrator(qm, vm, u, dt, scheme, f_ext=fext, output_convention="mujoco")
+
+    def tangent(x):
+        return np.concatenate([rbd.mujoco_difference(x0[:m.nq], x[:m.nq]), x[m.nq:] - x0[m.nq:]])
+
+    eps = 1e-5
+    F = np.stack([(tangent(rbd.integrator(qm, vm, u, dt, scheme, f_ext=fext + eps * e.reshape(nb, 6),
+                                          output_convention="mujoco"))
+                   - tangent(rbd.integrator(qm, vm, u, dt, scheme, f_ext=fext - eps * e.reshape(nb, 6),
+                                            output_convention="mujoco"))) / (2 * eps)
+                  for e in np.eye(6 * nb)], -1)
+    assert_close(D.reshape(2 * nv, -1), F, f"{scheme} mujoco ∂x⁺/∂f_ext vs FD", 1e-6)
+
+
 def global_error(rbd, q, v, u, T, n, scheme, q_ref, v_ref):
     dt = T / n
     for _ in range(n):

@@ -164,34 +164,37 @@ def test_external_force_gradients_against_central_differences(name, floating):
 
 @pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
 def test_step_external_force_gradients_against_central_differences(name, floating):
-    # the one-stage steps read f_ext through a(q, qd, u + Σ_b J_bᵀ f_b): ∂x⁺/∂f_b = B J_bᵀ. Reverse mode
-    # in (u, f) together, forward mode over a batch of forces, against central differences of the
-    # NumPy handle's x⁺ (coordinates); the multi-stage schemes refuse
+    # ∂x⁺/∂f_ext (integrator_f_ext_gradient), every scheme: reverse mode in (u, f) together, forward mode
+    # over a batch of forces, against central differences of the NumPy handle's x⁺ (coordinates); and in
+    # MuJoCo's coordinates
     h = handle(name, floating)
     q, qd, u = (a[0] for a in states(h, 1, seed=8))
     f = np.random.default_rng(9).standard_normal((h.nb, 6))
     w = np.random.default_rng(10).standard_normal(h.nq + h.nv)
     x = np.concatenate([q, qd])
-    for scheme in ("euler", "semi_implicit_euler", "constant_acceleration"):
-        for op in ("integrator", "plant_step"):
-            state = (q, qd) if op == "integrator" else (x,)
-            step = lambda u, f: getattr(h, op)(*state, u, 0.01, scheme, f_ext=f)  # noqa: E731
-            step_np = lambda u, f: getattr(h.numpy, op)(*state, u, 0.01, scheme,  # noqa: E731
-                                                        f_ext=f.reshape(h.nb, 6))
-            gu, gf = jax.jit(jax.grad(lambda u, f: jnp.dot(w, step(u, f)), argnums=(0, 1)))(u, f)
-            assert rel(gu, w @ central_difference(lambda z: step_np(z, f), u)) < 1e-6, (scheme, op)
-            assert rel(np.asarray(gf).ravel(), w @ central_difference(lambda z: step_np(u, z), f.ravel())) < 1e-6, \
-                (scheme, op)
-            J = jax.jacfwd(lambda f: step(u, f))(np.stack([f, -f]))  # (2, nx, 2, nb, 6)
-            assert rel(np.asarray(J[1, :, 1]).reshape(h.nq + h.nv, -1),
-                       central_difference(lambda z: step_np(u, z), -f.ravel())) < 1e-6, (scheme, op)
-    for scheme in ("midpoint", "rk4", "trapezoidal"):
-        with pytest.raises(NotImplementedError, match=f"one-stage schemes .*, not '{scheme}'"):
-            jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, scheme, f_ext=f)))(f)
-    if floating:  # MuJoCo's coordinates on a model with quaternions: refused, by name
-        qm = h.numpy.state_to_mujoco(x)
-        with pytest.raises(NotImplementedError, match="f_ext in MuJoCo's output convention"):
-            jax.grad(lambda f: jnp.sum(h.plant_step(qm, u, 0.01, f_ext=f, output_convention="mujoco")))(f)
+    xm = h.numpy.state_to_mujoco(x)
+    for scheme, op, conv in [(s, "integrator", "pinocchio") for s in SCHEMES] + [
+            ("semi_implicit_euler", "plant_step", "pinocchio"), ("rk4", "plant_step", "mujoco")]:
+        state = (q, qd) if op == "integrator" else (xm if conv == "mujoco" else x,)
+        kw = {"output_convention": conv}
+        step = lambda u, f: getattr(h, op)(*state, u, 0.01, scheme, f_ext=f, **kw)  # noqa: E731
+        step_np = lambda u, f: getattr(h.numpy, op)(*state, u, 0.01, scheme, f_ext=f.reshape(h.nb, 6),  # noqa: E731
+                                                    **kw)
+        gu, gf = jax.jit(jax.grad(lambda u, f: jnp.dot(w, step(u, f)), argnums=(0, 1)))(u, f)
+        assert rel(gu, w @ central_difference(lambda z: step_np(z, f), u)) < 1e-6, (scheme, op, conv)
+        assert rel(np.asarray(gf).ravel(), w @ central_difference(lambda z: step_np(u, z), f.ravel())) < 1e-6, \
+            (scheme, op, conv)
+        J = jax.jacfwd(lambda f: step(u, f))(np.stack([f, -f]))  # (2, nx, 2, nb, 6)
+        assert rel(np.asarray(J[1, :, 1]).reshape(h.nq + h.nv, -1),
+                   central_difference(lambda z: step_np(u, z), -f.ravel())) < 1e-6, (scheme, op, conv)
+    # the rule's x⁺ and [A | B] (integrator_f_ext_gradient's first outputs) are the step's and its gradient's,
+    # bit for bit: the force columns leave the others as they were
+    for scheme in SCHEMES:
+        kw = dict(q=q, qd=qd, u=u, dt=0.01, integrator_type=scheme, f_ext=f)
+        x1, AB1, _ = h._values("integrator_f_ext_gradient", (), kw, outputs=0b111)
+        x2, AB2 = h._values("integrator_gradient", (), kw, outputs=0b11)
+        np.testing.assert_array_equal(np.asarray(x1), np.asarray(x2))
+        np.testing.assert_array_equal(np.asarray(AB1), np.asarray(AB2))
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
@@ -367,9 +370,6 @@ def test_operations_without_a_rule_and_f_ext_say_so():
         jax.grad(lambda q: jnp.sum(h.coriolis_matrix(q, qd)))(q)
     with pytest.raises(NotImplementedError, match="end_effector_pose is differentiable with respect to q only"):
         jax.grad(lambda o: jnp.sum(h.end_effector_pose(q, ee_offsets=o)))(np.zeros((1, 3)))
-    with pytest.raises(NotImplementedError, match=r"one-stage schemes \(euler, semi_implicit_euler, "
-                                                  r"constant_acceleration\), not 'rk4'"):
-        jax.grad(lambda f: jnp.sum(h.integrator(q, qd, u, 0.01, "rk4", f_ext=f)))(np.zeros((h.nb, 6)))
     # MuJoCo's coordinates on a model with quaternions: the Gauss–Newton costs' values, but no derivative
     hq = handle("hyq", True)
     qm = hq.numpy.state_to_mujoco(np.concatenate(states(hq, 1)[:2], -1)[0])[:hq.nq]

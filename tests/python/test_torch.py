@@ -111,9 +111,9 @@ def test_gradcheck(name, floating):
         assert torch.autograd.gradcheck(lambda q, qd, u: h.integrator(q, qd, u, 0.01, scheme), (q, qd, u)), scheme
     x = torch.cat([q, qd], -1).detach().requires_grad_()
     assert torch.autograd.gradcheck(lambda x, u: h.plant_step(x, u, 0.01, "rk4"), (x, u))
-    for scheme in ("euler", "semi_implicit_euler", "constant_acceleration"):  # f_ext: one-stage steps
+    for scheme in SCHEMES:  # with external forces
         assert torch.autograd.gradcheck(lambda q, u, f: h.integrator(q, qd, u, 0.01, scheme, f_ext=f), (q, u, f))
-        assert torch.autograd.gradcheck(lambda x, f: h.plant_step(x, u, 0.01, scheme, f_ext=f), (x, f))
+    assert torch.autograd.gradcheck(lambda x, f: h.plant_step(x, u, 0.01, "rk4", f_ext=f), (x, f))
     for op, kw in CONFIGURATION_CASES:
         f = configuration_call(h, op, kw)
         assert torch.autograd.gradcheck(lambda q: tuple(f(h, q)), (q,)), (op, kw)
@@ -174,14 +174,23 @@ def test_quaternion_models_against_central_differences(name, floating):
         assert rel(h.tangent_gradient(tq.detach(), tq.grad), central_difference(lambda z: f(z, qd, u), q,
                                                                                **manifold)) < 1e-6, scheme
         assert rel(tu.grad, central_difference(lambda z: f(q, qd, z), u)) < 1e-6, scheme
-    # a one-stage step's external forces (∂x⁺/∂f_b = B J_bᵀ), with q's gradient alongside
+    # a step's external forces (integrator_f_ext_gradient), with q's gradient alongside; and in MuJoCo's
+    # coordinates
     fx = np.random.default_rng(6).standard_normal((h.nb, 6))
-    tq, tf = tensors(q, fx)
-    (h.integrator(tq, torch.tensor(qd), torch.tensor(u), 0.01, "semi_implicit_euler", f_ext=tf)
+    for scheme in ("semi_implicit_euler", "rk4"):
+        tq, tf = tensors(q, fx)
+        (h.integrator(tq, torch.tensor(qd), torch.tensor(u), 0.01, scheme, f_ext=tf) @ torch.tensor(wx)).backward()
+        f = lambda q, fx: wx @ h.numpy.integrator(q, qd, u, 0.01, scheme, f_ext=fx.reshape(h.nb, 6))  # noqa: E731
+        assert rel(tf.grad.reshape(-1), central_difference(lambda z: f(q, z), fx.ravel())) < 1e-6, scheme
+        assert rel(h.tangent_gradient(tq.detach(), tq.grad), central_difference(lambda z: f(z, fx), q, **manifold)) \
+            < 1e-6, scheme
+    xm = h.numpy.state_to_mujoco(np.concatenate([q, qd]))
+    tf = tensors(fx)[0]
+    (h.plant_step(torch.tensor(xm), torch.tensor(u), 0.01, "rk4", f_ext=tf, output_convention="mujoco")
      @ torch.tensor(wx)).backward()
-    f = lambda q, fx: wx @ h.numpy.integrator(q, qd, u, 0.01, "semi_implicit_euler", f_ext=fx.reshape(h.nb, 6))  # noqa
-    assert rel(tf.grad.reshape(-1), central_difference(lambda z: f(q, z), fx.ravel())) < 1e-6
-    assert rel(h.tangent_gradient(tq.detach(), tq.grad), central_difference(lambda z: f(z, fx), q, **manifold)) < 1e-6
+    f = lambda fx: wx @ h.numpy.plant_step(xm, u, 0.01, "rk4", f_ext=fx.reshape(h.nb, 6),  # noqa: E731
+                                           output_convention="mujoco")
+    assert rel(tf.grad.reshape(-1), central_difference(f, fx.ravel())) < 1e-6
     rng = np.random.default_rng(5)
     for op, kw in CONFIGURATION_CASES:
         f = configuration_call(h, op, kw)
@@ -231,13 +240,6 @@ def test_errors_are_clear():
         torch.autograd.functional.hessian(lambda q: h.com(q)[2], q.detach()[0])
     with pytest.raises(NotImplementedError, match="differentiable with respect to q only, not ee_offsets"):
         h.end_effector_pose(q, ee_offsets=torch.zeros(1, 3, dtype=torch.float64, requires_grad=True))
-    with pytest.raises(NotImplementedError, match="f_ext is available for the one-stage schemes.*not 'midpoint'"):
-        h.integrator(q, qd, u, 0.01, "midpoint", f_ext=torch.zeros(h.nb, 6, dtype=torch.float64, requires_grad=True))
-    hq = handle("hyq", True)  # and in MuJoCo's coordinates on a model with quaternions
-    xq = hq.numpy.state_to_mujoco(np.concatenate([a[0] for a in states(hq, 1)[:2]]))
-    with pytest.raises(NotImplementedError, match="f_ext in MuJoCo's output convention"):
-        hq.plant_step(torch.tensor(xq), torch.zeros(hq.nv, dtype=torch.float64), 0.01, output_convention="mujoco",
-                      f_ext=torch.zeros(hq.nb, 6, dtype=torch.float64, requires_grad=True))
     with pytest.raises(ValueError, match=r"qd: expected shape \(\.\.\., 7\)"):
         h.aba(q, qd[..., :3], u)
     with pytest.raises(ValueError, match="integrator_type"):

@@ -70,27 +70,41 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   return true;
 }
 
+// the generalized force that body-local wrenches f_ext act as: sign · J_bᵀ f_b
+// summed over bodies, as the matrix of its entries, element [b][r][c] =
+// sign · (J_b)[c][r] at Jt[b·body_stride + r·row_stride + c] (J_b: body b's
+// Jacobian in its own frame, 6 x nv; a mimic body adds into its target's rows).
+// writes w.X_parent, w.X_world, w.S_world
+template <typename S>
+RBD_HD void external_force_map(const ModelView<S>& m, Workspace<S>& w, const S* q, S sign, S* Jt, int body_stride,
+                               int row_stride) {
+  const int nv = m.nv, nb = m.nb;
+  for (int bb = 0; bb < nb; ++bb)
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < 6; ++c) Jt[bb * body_stride + r * row_stride + c] = S(0);
+  // world-frame subspace columns
+  for (int i = 0; i < nb; ++i) world_placement(m, w, q, i);
+  // column k of J_b (body frame) = X_0b⁻¹ s_k for k on b's support
+  for (int bb = 0; bb < nb; ++bb) {
+    S* Jb = Jt + bb * body_stride;
+    for (int k = bb; k >= 0; k = m.body[k].parent) {
+      const BodyDesc<S>& bk = m.body[k];
+      for (int c = 0; c < bk.nv; ++c) {
+        S col[6];
+        store(w.X_world[bb].act_inv(w.S_world[6 * k + c]), col);
+        for (int r = 0; r < 6; ++r) Jb[(bk.v_idx + c) * row_stride + r] += sign * col[r];
+      }
+    }
+  }
+}
+
 // body Jacobians in body coordinates, transposed and negated:
 // dtau_dfext (nb x nv x 6): [b][r][c] = ∂tau_r/∂f_ext_b[c] = -(J_b)[c][r];
 // then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world
 template <typename S>
 RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, S* dtau_dfext, S* dqdd_dfext) {
   const int nv = m.nv, nb = m.nb;
-  for (int k = 0; k < nb * nv * 6; ++k) dtau_dfext[k] = S(0);
-  // world-frame subspace columns
-  for (int i = 0; i < nb; ++i) world_placement(m, w, q, i);
-  // column k of J_b (body frame) = X_0b⁻¹ s_k for k on b's support
-  for (int bb = 0; bb < nb; ++bb) {
-    S* Jt = dtau_dfext + bb * nv * 6;
-    for (int k = bb; k >= 0; k = m.body[k].parent) {
-      const BodyDesc<S>& bk = m.body[k];
-      for (int c = 0; c < bk.nv; ++c) {
-        S col[6];
-        store(w.X_world[bb].act_inv(w.S_world[6 * k + c]), col);
-        for (int r = 0; r < 6; ++r) Jt[(bk.v_idx + c) * 6 + r] -= col[r];
-      }
-    }
-  }
+  external_force_map(m, w, q, S(-1), dtau_dfext, nv * 6, 6);
   // M⁻¹ Jᵀ = -M⁻¹ (-Jᵀ), one body block (nv x 6) at a time
   for (int k = 0; k < nb * nv * 6; ++k) dqdd_dfext[k] = dtau_dfext[k];
   if (!prepare_minv(m, w, q)) return false;

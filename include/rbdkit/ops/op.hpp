@@ -172,6 +172,7 @@ enum OpScratch : unsigned char {
   kScratchIntegratorHessian,  // integrator_hessian_scratch_values(nq, nv) + nq + nv + 6 nv²
   kScratchD2Integrate,        // 2 (2 nq + 2 nv + nv²): dual numbers
   kScratchEeHessianDual,      // ee_hessian_dual_scratch(nb, nq, nv): a model and a workspace in dual numbers
+  kScratchIntegratorFExtGrad, // integrator_fext_gradient_scratch_values(nq, nv, nb) + nq + nv + 6 nv²
 };
 
 // what an operation's outputs may hold

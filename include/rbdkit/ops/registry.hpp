@@ -537,6 +537,25 @@ struct IntegratorGradient {
   }
 };
 
+struct IntegratorFExtGradient {
+  static constexpr OpSpec spec = {
+      "integrator_f_ext_gradient", "integrator_gradient", "integrators",
+      "∂x⁺/∂f_ext (2·nv, nb, 6) of integrator: rows [δq⁺; δqd⁺] in the tangent space, [:, b, c] the derivative "
+      "with respect to component c of body b's wrench (body frame, as f_ext). Every scheme: each stage applies "
+      "the forces at its own configuration. x⁺ and [A | B] (integrator_gradient's) are the first two outputs.",
+      8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
+      3, {{"x_next", shape(kNx)}, {"AB", shape(k2Nv, k3Nv)}, {"dx_df", shape(k2Nv, kNb, 6)}}, 0b100, 0, kFull,
+      kScratchIntegratorFExtGrad, kStepFailed, kAnyModel, kFiniteOutputs, 0, kCalled};
+  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+    // x⁺ and AB in the scratch when not asked for (after the step's own)
+    S* spare = a.scratch + integrator_fext_gradient_scratch_values(m.nq, m.nv, m.nb);
+    S* x = a.out[0] ? a.out[0] : spare;
+    S* AB = a.out[1] ? a.out[1] : spare + m.nq + m.nv;
+    return integrator_fext_gradient(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6],
+                                     x, x + m.nq, AB, a.out[2], a.scratch, a.choice[7]);
+  }
+};
+
 struct PlantStep {
   static constexpr OpSpec spec = {
       "plant_step", "integrator", "integrators", "x⁺ (nq + nv,) for x = [q; qd] (nq + nv,).",
@@ -1274,8 +1293,9 @@ template <typename Op, typename First, typename... Rest> constexpr int index_of(
 using AllOps = OpList<InverseDynamics, GeneralizedGravity, NonlinearEffects, Crba, Minv, Aba, ForwardDynamics,
                       InverseDynamicsGradient, ForwardDynamicsGradient, FExtGradient, IdsvaSoBodyFrame,
                       IdsvaSoWorldFrame, IdsvaSo, FdsvaSo, Integrate, Difference, DIntegrate,
-                      DDifference, Integrator, IntegratorGradient, PlantStep, PlantStepGradient, KineticEnergy,
-                      PotentialEnergy, MechanicalEnergy, CoriolisMatrix, Com, JacobianCom, Ccrba, CentroidalMomentum,
+                      DDifference, Integrator, IntegratorGradient, IntegratorFExtGradient, PlantStep,
+                      PlantStepGradient, KineticEnergy, PotentialEnergy, MechanicalEnergy, CoriolisMatrix, Com,
+                      JacobianCom, Ccrba, CentroidalMomentum,
                       Dccrba, CmmTimeVariation, CentroidalMomentumTimeVariation, CentroidalDynamicsDerivatives,
                       InverseDynamicsRegressor,
                       KineticEnergyRegressor, PotentialEnergyRegressor, StateToMujoco, StateFromMujoco,

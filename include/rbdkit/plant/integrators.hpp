@@ -72,6 +72,11 @@ template <typename S> struct PinocchioStep {
     copy_minv(m, w, Fu);  // ∂a/∂u = M⁻¹, which aba_derivatives left in w
     return true;
   }
+  // the generalized force the body-local wrenches f_ext act as, J_f = ∂u/∂f = [J_0ᵀ … J_(nb-1)ᵀ]
+  // (nv x 6nb) at q (so ∂a/∂f = Fu J_f)
+  RBD_HD static void force_map(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Jf, S*) {
+    external_force_map(m, w, q, S(1), Jf, 6, 6 * m.nb);
+  }
 };
 
 // MuJoCo's: mj_integratePos, qvel = [ṗ world; ω body] on free joints
@@ -92,6 +97,17 @@ template <typename S> struct MujocoStep {
                                               S* scratch) {
     return mujoco_acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
   }
+  // J_f in MuJoCo's generalized forces, u_mj = C u_pin: the free joints' linear rows turned into the
+  // world (scratch: nq values)
+  RBD_HD static void force_map(const ModelView<S>& m, Workspace<S>& w, const S* q_mj, S* Jf, S* scratch) {
+    S* q = scratch;  // (nq) Pinocchio configuration
+    configuration_from_mujoco(m, q_mj, q);
+    external_force_map(m, w, q, S(1), Jf, 6, 6 * m.nb);
+    for (int i = 0; i < m.nb; ++i) {
+      const BodyDesc<S>& b = m.body[i];
+      if (!b.mimic && b.type == kFree) rotate_rows(free_rotation_mj(b, q_mj), Jf, b.v_idx, 6 * m.nb);
+    }
+  }
 };
 
 // scratch values (of type S) for one step, and for a step with its gradient (either convention)
@@ -100,6 +116,11 @@ RBD_HD long integrator_scratch_values(int nq, int nv) {
 }
 RBD_HD long integrator_gradient_scratch_values(int nq, int nv) {
   return integrator_scratch_values(nq, nv) + 29L * nv * nv;
+}
+// and for a step with its gradient and ∂x⁺/∂f_ext: eight derivative blocks 6nb
+// columns wider, and the stage's force map J_f (nv x 6nb)
+RBD_HD long integrator_fext_gradient_scratch_values(int nq, int nv, int nb) {
+  return integrator_gradient_scratch_values(nq, nv) + 9L * nv * 6 * nb;
 }
 
 // x⁺ = (q⁺ (nq), v⁺ (nv)) written to q_next, v_next, in the coordinates of
@@ -171,13 +192,19 @@ template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, in
 }
 
 // x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major) in the tangent of the
-// convention Conv. false if M is not PD.
+// convention Conv; with dX_df (2nv x 6nb, may be null) also ∂x⁺/∂f_ext,
+// column 6b + c for component c of body b's wrench. false if M is not PD.
+// The derivatives are carried as nv x nc blocks, columns [δq | δv | δu | δf]
+// (nc = 3nv, or 3nv + 6nb with dX_df); f_ext enters each stage as the force
+// it acts as, Fu J_f(q_s) (Conv::force_map), the only input whose map
+// depends on the stage's configuration. The δf columns do not change the
+// others: every product computes each column on its own.
 template <typename Conv, typename S>
 RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
                                      const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
-                                     S* scratch) {
-  const int nq = m.nq, nv = m.nv, n3 = 3 * nv;
-  const long nn = static_cast<long>(nv) * nv;
+                                     S* dX_df, S* scratch) {
+  const int nq = m.nq, nv = m.nv, n3 = 3 * nv, nf = dX_df ? 6 * m.nb : 0, nc = n3 + nf;
+  const long nn = static_cast<long>(nv) * nv, nd = static_cast<long>(nv) * nc;
   S* qs = scratch;
   S* vs = qs + nq;
   S* as = vs + nv;
@@ -186,42 +213,62 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
   S* step = asum + nv;
   S* cs = step + nv;  // the convention's scratch
   S* mat = scratch + integrator_scratch_values(nq, nv);
-  // per stage: ∂q_s, ∂v_s, ∂a_s with respect to [δq | δv | δu] (nv x 3nv each)
-  S* Dq = mat;            // nv x 3nv
-  S* Dv = Dq + 3 * nn;    // nv x 3nv
-  S* Da = Dv + 3 * nn;    // nv x 3nv
-  S* Dvsum = Da + 3 * nn; // nv x 3nv
-  S* Dasum = Dvsum + 3 * nn;
-  S* Dstep = Dasum + 3 * nn;
-  S* Fq = Dstep + 3 * nn;  // ∂a/∂q at the stage (nv x nv)
+  // per stage: ∂q_s, ∂v_s, ∂a_s with respect to [δq | δv | δu (| δf)] (nv x nc each)
+  S* Dq = mat;            // nv x nc
+  S* Dv = Dq + nd;        // nv x nc
+  S* Da = Dv + nd;        // nv x nc
+  S* Dvsum = Da + nd;     // nv x nc
+  S* Dasum = Dvsum + nd;
+  S* Dstep = Dasum + nd;
+  S* Fq = Dstep + nd;      // ∂a/∂q at the stage (nv x nv)
   S* Fv = Fq + nn;         // ∂a/∂v
   S* Jq = Fv + nn;         // dIntegrate/dq
   S* Jv = Jq + nn;         // dIntegrate/dv
-  S* T1 = Jv + nn;         // nv x 3nv temporaries
-  S* T2 = T1 + 3 * nn;
-  S* Fu = T2 + 3 * nn;     // ∂a/∂u at the stage (nv x nv)
+  S* T1 = Jv + nn;         // nv x nc temporaries
+  S* T2 = T1 + nd;
+  S* Fu = T2 + nd;         // ∂a/∂u at the stage (nv x nv)
+  S* Jf = Fu + nn;         // the force f_ext acts as, ∂u/∂f at the stage (nv x nf)
 
-  // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 Fu]
+  // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 Fu Fu J_f]
   auto stage_acceleration = [&](const S* qq, const S* vv) -> bool {
     if (!Conv::acceleration_derivatives(m, w, qq, vv, u, fext, gravity, as, Fq, Fv, Fu, cs)) return false;
-    matmul(Fq, Dq, Da, nv, nv, n3);
-    matmul(Fv, Dv, T1, nv, nv, n3);
-    for (long k = 0; k < 3 * nn; ++k) Da[k] += T1[k];
+    matmul(Fq, Dq, Da, nv, nv, nc);
+    matmul(Fv, Dv, T1, nv, nv, nc);
+    for (long k = 0; k < nd; ++k) Da[k] += T1[k];
     for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) Da[r * n3 + 2 * nv + c] += Fu[r * nv + c];
+      for (int c = 0; c < nv; ++c) Da[r * nc + 2 * nv + c] += Fu[r * nv + c];
+    if (nf) {
+      Conv::force_map(m, w, qq, Jf, cs);
+      matmul(Fu, Jf, T1, nv, nv, nf);
+      for (int r = 0; r < nv; ++r)
+        for (int c = 0; c < nf; ++c) Da[r * nc + n3 + c] += T1[r * nf + c];
+    }
     return true;
   };
   // ∂(q ⊕ w) for a step w with derivative Dw: Jq [1 0 0] + Jv Dw, written to out
   auto retract_derivative = [&](const S* w_step, const S* Dw, S* out) {
     Conv::dretract(m, q, w_step, 0, Jq);
     Conv::dretract(m, q, w_step, 1, Jv);
-    matmul(Jv, Dw, out, nv, nv, n3);
+    matmul(Jv, Dw, out, nv, nv, nc);
     for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) out[r * n3 + c] += Jq[r * nv + c];
+      for (int c = 0; c < nv; ++c) out[r * nc + c] += Jq[r * nv + c];
   };
   auto identity_block = [&](S* D, int block) {
-    for (long k = 0; k < 3 * nn; ++k) D[k] = S(0);
-    for (int r = 0; r < nv; ++r) D[r * n3 + block * nv + r] = S(1);
+    for (long k = 0; k < nd; ++k) D[k] = S(0);
+    for (int r = 0; r < nv; ++r) D[r * nc + block * nv + r] = S(1);
+  };
+  // rows r of ∂q⁺ (Dq_next) and ∂v⁺ (Dv_next): AB's columns and dX_df's
+  auto write_outputs = [&](const S* Dq_next, const S* Dv_next) {
+    for (int r = 0; r < nv; ++r) {
+      for (int c = 0; c < n3; ++c) {
+        AB[r * n3 + c] = Dq_next[r * nc + c];
+        AB[(nv + r) * n3 + c] = Dv_next[r * nc + c];
+      }
+      for (int c = 0; c < nf; ++c) {
+        dX_df[r * nf + c] = Dq_next[r * nc + n3 + c];
+        dX_df[(nv + r) * nf + c] = Dv_next[r * nc + n3 + c];
+      }
+    }
   };
 
   // stage 1 (every scheme): q, v, a(q, v)
@@ -232,60 +279,54 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
   if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
     // v⁺ = v + dt a
     for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
-    for (long k = 0; k < 3 * nn; ++k) Dstep[k] = dt * Da[k];  // ∂v⁺ - ∂v
-    for (int r = 0; r < nv; ++r) Dstep[r * n3 + nv + r] += S(1);
+    for (long k = 0; k < nd; ++k) Dstep[k] = dt * Da[k];  // ∂v⁺ - ∂v
+    for (int r = 0; r < nv; ++r) Dstep[r * nc + nv + r] += S(1);
     // step w and ∂w
     for (int k = 0; k < nv; ++k)
       step[k] = type == kEuler ? dt * v[k]
               : type == kSemiImplicitEuler ? dt * v_next[k]
               : dt * v[k] + S(0.5) * dt * dt * as[k];
     if (type == kEuler) {
-      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dv[k];
+      for (long k = 0; k < nd; ++k) T2[k] = dt * Dv[k];
     } else if (type == kSemiImplicitEuler) {
-      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dstep[k];
+      for (long k = 0; k < nd; ++k) T2[k] = dt * Dstep[k];
     } else {
-      for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
+      for (long k = 0; k < nd; ++k) T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
     }
     Conv::retract(m, q, step, q_next);
     retract_derivative(step, T2, T1);
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < n3; ++c) {
-        AB[r * n3 + c] = T1[r * n3 + c];
-        AB[(nv + r) * n3 + c] = Dstep[r * n3 + c];
-      }
+    write_outputs(T1, Dstep);
     return true;
   }
 
   // full-state stages
   const Tableau T = tableau(type);
   for (int k = 0; k < nv; ++k) vsum[k] = S(T.b[0]) * v[k], asum[k] = S(T.b[0]) * as[k];
-  for (long k = 0; k < 3 * nn; ++k) Dvsum[k] = S(T.b[0]) * Dv[k], Dasum[k] = S(T.b[0]) * Da[k];
+  for (long k = 0; k < nd; ++k) Dvsum[k] = S(T.b[0]) * Dv[k], Dasum[k] = S(T.b[0]) * Da[k];
   for (int k = 0; k < nv; ++k) vs[k] = v[k];
   for (int s = 1; s < T.stages; ++s) {
     const S c = S(T.c[s]) * dt;
     // q_s = q ⊕ c v_(s-1), v_s = v + c a_(s-1)
     for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
-    for (long k = 0; k < 3 * nn; ++k) T2[k] = c * Dv[k];
+    for (long k = 0; k < nd; ++k) T2[k] = c * Dv[k];
     Conv::retract(m, q, step, qs);
     retract_derivative(step, T2, Dq);
     for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
-    for (long k = 0; k < 3 * nn; ++k) Dv[k] = c * Da[k];
-    for (int r = 0; r < nv; ++r) Dv[r * n3 + nv + r] += S(1);
+    for (long k = 0; k < nd; ++k) Dv[k] = c * Da[k];
+    for (int r = 0; r < nv; ++r) Dv[r * nc + nv + r] += S(1);
     if (!stage_acceleration(qs, vs)) return false;
     const S b = S(T.b[s]);
     for (int k = 0; k < nv; ++k) vsum[k] += b * vs[k], asum[k] += b * as[k];
-    for (long k = 0; k < 3 * nn; ++k) Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k];
+    for (long k = 0; k < nd; ++k) Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k];
   }
   // q⁺ = q ⊕ dt Σ b v_s, v⁺ = v + dt Σ b a_s
   for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
-  for (long k = 0; k < 3 * nn; ++k) T2[k] = dt * Dvsum[k];
+  for (long k = 0; k < nd; ++k) T2[k] = dt * Dvsum[k];
   Conv::retract(m, q, step, q_next);
   retract_derivative(step, T2, T1);
   for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < n3; ++c) {
-      AB[r * n3 + c] = T1[r * n3 + c];
-      AB[(nv + r) * n3 + c] = dt * Dasum[r * n3 + c] + (c == nv + r ? S(1) : S(0));
-    }
+    for (int c = 0; c < nc; ++c) Dv[r * nc + c] = dt * Dasum[r * nc + c] + (c == nv + r ? S(1) : S(0));
+  write_outputs(T1, Dv);
   return true;
 }
 
@@ -296,9 +337,23 @@ RBD_HD bool integrator_gradient(const ModelView<S>& m, Workspace<S>& w, int type
                                 S* scratch, int convention = kPinocchioConvention) {
   if (convention == kMujocoConvention)
     return integrator_gradient_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
-                                                   scratch);
+                                                   static_cast<S*>(nullptr), scratch);
   return integrator_gradient_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
-                                                    scratch);
+                                                    static_cast<S*>(nullptr), scratch);
+}
+
+// the step, its gradient AB and dX_df = ∂x⁺/∂f_ext (2nv x 6nb, row-major: column 6b + c
+// for component c of body b's wrench, body frame), in the given convention;
+// scratch: integrator_fext_gradient_scratch_values(nq, nv, nb)
+template <typename S>
+RBD_HD bool integrator_fext_gradient(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
+                                      const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
+                                      S* dX_df, S* scratch, int convention = kPinocchioConvention) {
+  if (convention == kMujocoConvention)
+    return integrator_gradient_with<MujocoStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                   dX_df, scratch);
+  return integrator_gradient_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, AB,
+                                                    dX_df, scratch);
 }
 
 }  // namespace rbd
