@@ -27,9 +27,6 @@ DERIVATIVE_ALGORITHMS = {
     "ee_pos_cost": ("kinematics",),
     "inverse_dynamics_regressor": ("regressor_gradient",),
 }
-# the operations whose rule covers f_ext (f_ext_gradient: -J_bᵀ for the torques, M⁻¹ J_bᵀ for the
-# accelerations, with J_b body b's Jacobian in its own frame); the steps' is integrator_f_ext_gradient
-F_EXT_RULES = ("inverse_dynamics", "forward_dynamics", "aba")
 # the operations of the configuration alone whose rule is configuration_jacobians' (q's tangent only)
 CONFIGURATION_RULES = ("crba", "minv", "com", "frame_placement", "frame_jacobian", "end_effector_pose")
 

@@ -187,14 +187,17 @@ def test_step_external_force_gradients_against_central_differences(name, floatin
         J = jax.jacfwd(lambda f: step(u, f))(np.stack([f, -f]))  # (2, nx, 2, nb, 6)
         assert rel(np.asarray(J[1, :, 1]).reshape(h.nq + h.nv, -1),
                    central_difference(lambda z: step_np(u, z), -f.ravel())) < 1e-6, (scheme, op, conv)
+        assert not np.any(np.asarray(J[0, :, 1])), (scheme, op, conv)  # sample 0 does not see sample 1's forces
     # the rule's x⁺ and [A | B] (integrator_f_ext_gradient's first outputs) are the step's and its gradient's,
-    # bit for bit: the force columns leave the others as they were
+    # bit for bit, in either convention and over a batch: the force columns leave the others as they were
+    Q, QD, U = states(h, 3, seed=11)
     for scheme in SCHEMES:
-        kw = dict(q=q, qd=qd, u=u, dt=0.01, integrator_type=scheme, f_ext=f)
-        x1, AB1, _ = h._values("integrator_f_ext_gradient", (), kw, outputs=0b111)
-        x2, AB2 = h._values("integrator_gradient", (), kw, outputs=0b11)
-        np.testing.assert_array_equal(np.asarray(x1), np.asarray(x2))
-        np.testing.assert_array_equal(np.asarray(AB1), np.asarray(AB2))
+        for conv, q0 in (("pinocchio", Q), ("mujoco", h.numpy.state_to_mujoco(np.concatenate([Q, QD], -1))[:, :h.nq])):
+            kw = dict(q=q0, qd=QD, u=U, dt=0.01, integrator_type=scheme, f_ext=f, output_convention=conv)
+            x1, AB1, _ = h._values("integrator_f_ext_gradient", (), kw, outputs=0b111)
+            x2, AB2 = h._values("integrator_gradient", (), kw, outputs=0b11)
+            np.testing.assert_array_equal(np.asarray(x1), np.asarray(x2))
+            np.testing.assert_array_equal(np.asarray(AB1), np.asarray(AB2))
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False)])
@@ -363,7 +366,7 @@ def test_coordinate_and_tangent_maps(name, floating):
             assert abs(np.dot(gq[k:k + 4], q[k:k + 4])) < 1e-9
 
 
-def test_operations_without_a_rule_and_f_ext_say_so():
+def test_operations_without_a_rule_say_so():
     h = handle("iiwa", False)
     q, qd, u = (a[0] for a in states(h, 1))
     with pytest.raises(NotImplementedError, match="coriolis_matrix computes values only"):
