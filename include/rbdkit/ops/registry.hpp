@@ -515,7 +515,7 @@ struct Integrator {
       "forces f_ext.",
       8, {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), RBD_STEP_ARGS},
       1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed, kAnyModel,
-      kFiniteOutputs, 0, kCalled};
+      kFiniteOutputs, 0, kFlattened};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return integrator_step(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5], a.real[3], a.real[6], a.out[0],
                            a.out[0] + m.nq, a.scratch, a.choice[7]);
@@ -561,7 +561,7 @@ struct PlantStep {
       "plant_step", "integrator", "integrators", "x⁺ (nq + nv,) for x = [q; qd] (nq + nv,).",
       7, {array("x", shape(kNx), kConfiguration), RBD_STEP_ARGS},
       1, {{"x_next", shape(kNx)}}, 0b1, 0, kLinearUnlessMimic, kScratchIntegrator, kStepFailed, kAnyModel,
-      kFiniteOutputs, 0, kCalled};
+      kFiniteOutputs, 0, kFlattened};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
     return integrator_step(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.in[4], a.real[2], a.real[5],
                            a.out[0], a.out[0] + m.nq, a.scratch, a.choice[6]);

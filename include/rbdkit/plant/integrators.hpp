@@ -13,6 +13,8 @@
 // Jacobian follows the stages by the chain rule: forward-dynamics gradients
 // at each stage and the Lie-group Jacobians of ⊕ (configuration.hpp).
 // Tangent columns: [δq (nv) | δv (nv) | δu (nv)]; rows [δq⁺ (nv) | δv⁺ (nv)].
+// integrator_fext_gradient adds the columns of the external forces, δf (6 nb):
+// each stage applies them as a generalized force at its own configuration.
 //
 // The stage loop is written once over a convention policy (the coordinates
 // the step runs in): PinocchioStep (integrate/difference, body-frame v) or

@@ -197,11 +197,12 @@ template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X,
   const Mat3<S> RI = R * Ib.I;
   const S m = Ib.m;
   const S diag = S(2) * dot(h, p) + m * dot(p, p);
+  const S pa[3] = {p.x, p.y, p.z}, ha[3] = {h.x, h.y, h.z};  // indexed below (Vec3's [] is a select)
   Mat3<S> I;
   for (int r = 0; r < 3; ++r)
     for (int c = r; c < 3; ++c) {
       const S rot = RI(r, 0) * R(c, 0) + RI(r, 1) * R(c, 1) + RI(r, 2) * R(c, 2);
-      const S v = rot - (p[r] * h[c] + h[r] * p[c] + m * p[r] * p[c]) + (r == c ? diag : S(0));
+      const S v = rot - (pa[r] * ha[c] + ha[r] * pa[c] + m * pa[r] * pa[c]) + (r == c ? diag : S(0));
       I(r, c) = v;
       I(c, r) = v;
     }
@@ -243,9 +244,10 @@ template <typename S> RBD_HD InertiaRate<S> inertia_variation(const Inertia<S>& 
   const S diag = S(2) * dot(I.h, vl);
   InertiaRate<S> B;
   B.beta = I.m * vl + cross(w, I.h);
+  const S ha[3] = {I.h.x, I.h.y, I.h.z}, va[3] = {vl.x, vl.y, vl.z};  // indexed below
   for (int r = 0; r < 3; ++r)
     for (int c = r; c < 3; ++c) {
-      const S x = P(r, c) + P(c, r) - (I.h[r] * vl[c] + vl[r] * I.h[c]) + (r == c ? diag : S(0));
+      const S x = P(r, c) + P(c, r) - (ha[r] * va[c] + va[r] * ha[c]) + (r == c ? diag : S(0));
       B.C(r, c) = x;
       B.C(c, r) = x;
     }
@@ -262,10 +264,11 @@ template <typename S> RBD_HD InertiaRate<S> transform_rate(const Transform<S>& X
   const Vec3<S>& b = out.beta;
   const Mat3<S> RC = R * B.C;
   const S diag = S(2) * dot(b, p);
+  const S pa[3] = {p.x, p.y, p.z}, ba[3] = {b.x, b.y, b.z};  // indexed below
   for (int r = 0; r < 3; ++r)
     for (int c = r; c < 3; ++c) {
       const S rot = RC(r, 0) * R(c, 0) + RC(r, 1) * R(c, 1) + RC(r, 2) * R(c, 2);
-      const S x = rot - (p[r] * b[c] + b[r] * p[c]) + (r == c ? diag : S(0));
+      const S x = rot - (pa[r] * ba[c] + ba[r] * pa[c]) + (r == c ? diag : S(0));
       out.C(r, c) = x;
       out.C(c, r) = x;
     }
