@@ -219,15 +219,20 @@ def test_gauss_newton_cost_values_on_a_floating_base(name, floating):
 def test_torch_compile_traces_without_graph_breaks():
     h = handle("iiwa", False)
     q, qd, u = tensors(*states(h, 3))
-    f = torch.compile(lambda q, qd, u: (h.aba(q, qd, u) ** 2).sum() + h.integrator(q, qd, u, 0.01, "rk4").sum(),
-                      fullgraph=True, backend="aot_eager")
-    y = f(q, qd, u)
+    fx = np.random.default_rng(3).standard_normal((h.nb, 6))
+    f_ext, f_ext2 = tensors(fx, fx)
+
+    def loss(q, qd, u, f_ext):  # the step's f_ext rule (integrator_f_ext_gradient) traced too
+        return (h.aba(q, qd, u) ** 2).sum() + h.integrator(q, qd, u, 0.01, "rk4").sum() + \
+            (h.integrator(q, qd, u, 0.01, "midpoint", f_ext=f_ext) ** 2).sum()
+
+    y = torch.compile(loss, fullgraph=True, backend="aot_eager")(q, qd, u, f_ext)
     y.backward()
     q2, qd2, u2 = tensors(*states(h, 3))
-    y2 = (h.aba(q2, qd2, u2) ** 2).sum() + h.integrator(q2, qd2, u2, 0.01, "rk4").sum()
+    y2 = loss(q2, qd2, u2, f_ext2)
     y2.backward()
     assert torch.allclose(y, y2, rtol=1e-14, atol=0)
-    for a, b in ((q, q2), (qd, qd2), (u, u2)):
+    for a, b in ((q, q2), (qd, qd2), (u, u2), (f_ext, f_ext2)):
         assert torch.allclose(a.grad, b.grad, rtol=1e-12, atol=1e-12)
 
 
