@@ -105,10 +105,7 @@ template <typename S> struct MujocoStep {
     S* q = scratch;  // (nq) Pinocchio configuration
     configuration_from_mujoco(m, q_mj, q);
     external_force_map(m, w, q, S(1), Jf, 6, 6 * m.nb);
-    for (int i = 0; i < m.nb; ++i) {
-      const BodyDesc<S>& b = m.body[i];
-      if (!b.mimic && b.type == kFree) rotate_rows(free_rotation_mj(b, q_mj), Jf, b.v_idx, 6 * m.nb);
-    }
+    rows_to_mujoco(m, q_mj, Jf, 6 * m.nb);
   }
 };
 

@@ -202,6 +202,15 @@ template <typename S> RBD_HD void jacobian_cols_to_mujoco(const ModelView<S>& m,
     rotate_cols_t(free_rotation_mj(b, q_mj), J, b.v_idx, rows, m.nv);
   }
 }
+// F (nv x cols) whose rows are Pinocchio generalized forces or velocities -> MuJoCo's
+// at the same configuration: F ← C F (free-joint linear rows)
+template <typename S> RBD_HD void rows_to_mujoco(const ModelView<S>& m, const S* q_mj, S* F, int cols) {
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    if (b.mimic || b.type != kFree) continue;
+    rotate_rows(free_rotation_mj(b, q_mj), F, b.v_idx, cols);
+  }
+}
 // the configuration dependence of x_pin = Cᵀ x_mj at fixed x_mj (a velocity or
 // force; x_pin (nv) in Pinocchio frames): for F = ∂y/∂x_pin (rows x nv),
 // Jq (rows x nv) += F ∂x_pin/∂δq, i.e. on each free joint's angle columns
