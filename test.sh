@@ -35,6 +35,8 @@ fi
 cmake -S . -B build/cpp -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES="${RBDKIT_TEST_CUDA_ARCH:-90-virtual}" \
   -DRBDKIT_CUDA_CHECK=OFF >/dev/null
 cmake --build build/cpp -j "$JOBS"
+# the compiled per-robot instances the tests make (Handle::specialize), one cache for every suite below
+export RBDKIT_CACHE_DIR="$PWD/build/instances"
 (cd build/cpp && ctest --output-on-failure -j "$JOBS")
 
 # ---- the same C++ tests under AddressSanitizer and UndefinedBehaviorSanitizer

@@ -15,6 +15,13 @@
 // call, the Pinocchio call and (optionally) how to compare their outputs.
 // An entry whose rbdkit side is empty is timed for Pinocchio alone.
 //
+// <operation>_generated rows (rnea, crba, minv, aba and the two first-order
+// derivatives): the same call through the robot's compiled instance
+// (rbd::load_instance, Handle::specialize's kernels: the generated header's
+// constants), compiled at start-up into $RBDKIT_CACHE_DIR (default
+// build/instances under the working directory) unless cached there. Without a
+// compiler the program says so and times the generic rows alone.
+//
 // Arguments: Google Benchmark's (--benchmark_filter, --benchmark_repetitions,
 // --benchmark_out=FILE --benchmark_out_format=json, ...) and
 //   --robots_dir=DIR   the URDF folder (default: rbdkit's robots/)
@@ -48,6 +55,8 @@
 #include <rbdkit/algorithms/aba_derivatives.hpp>
 #include <rbdkit/algorithms/fdsva_so.hpp>
 #include <rbdkit/batch/dynamics.hpp>
+#include <rbdkit/codegen/specialize.hpp>
+#include <rbdkit/ops/registry.hpp>
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
@@ -99,6 +108,12 @@ struct Robot {
 
   pinocchio::Model pmodel;
   std::unique_ptr<pinocchio::Data> pdata;
+
+  // the compiled instance's kernels of the _generated rows, each with its arguments on this state
+  std::shared_ptr<const rbd::Instance> instance;
+  rbd::ops::Kernel<double> kernel[6] = {};
+  rbd::ops::OpArgs<double> args[6] = {};
+  std::vector<double> scratch;
 
   Vec q, qd, qdd, tau;  // the state both libraries see
 
@@ -177,6 +192,55 @@ double compare_so(Robot& r) {
   return e;
 }
 
+// ---- the _generated rows: rnea, crba, minv, aba, rnea_derivatives, aba_derivatives through the
+// instance's kernels (the registered operations inverse_dynamics, crba, minv, aba,
+// inverse_dynamics_gradient, forward_dynamics_gradient), writing what the generic rows write
+constexpr const char* kGenerated[6][2] = {{"rnea", "inverse_dynamics"},
+                                           {"crba", "crba"},
+                                           {"minv", "minv"},
+                                           {"aba", "aba"},
+                                           {"rnea_derivatives", "inverse_dynamics_gradient"},
+                                           {"aba_derivatives", "forward_dynamics_gradient"}};
+
+template <int K> void generated(Robot& r) { r.kernel[K](r.mv, *r.w, r.args[K]); }
+constexpr void (*kGeneratedCalls[6])(Robot&) = {generated<0>, generated<1>, generated<2>,
+                                                 generated<3>, generated<4>, generated<5>};
+
+// loads r's instance (compiling it first if not cached) and points each row's arguments at r's state
+// and outputs; false (with the reason printed) when none could be made
+bool load_generated(Robot& r) {
+  rbd::SpecializeOptions o;
+  const char* dir = std::getenv("RBDKIT_CACHE_DIR");
+  o.cache_dir = dir && *dir ? dir : "build/instances";
+  try {
+    r.instance = rbd::load_instance(r.model, o);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench: %s: no _generated rows: %s\n", r.name.c_str(), e.what());
+    return false;
+  }
+  r.scratch.assign(2ul * r.nv() * r.nv(), 0.0);
+  for (int k = 0; k < 6; ++k) {
+    r.kernel[k] = rbd::instance_kernel(*r.instance, rbd::ops::find_op(kGenerated[k][1]));
+    rbd::ops::OpArgs<double>& a = r.args[k];
+    a = {};
+    a.scratch = r.scratch.data();
+    a.in[0] = r.q.data();
+  }
+  auto& id = r.args[0];  // (q, qd, qdd, gravity, f_ext) -> tau
+  id.in[1] = r.qd.data(), id.in[2] = r.qdd.data(), id.real[3] = kGravity, id.out[0] = r.out.data();
+  r.args[1].out[0] = r.out.data();  // crba (q) -> M
+  r.args[2].choice[1] = 0, r.args[2].out[0] = r.out.data();  // minv (q, output_dense = false) -> upper M⁻¹
+  auto& aba = r.args[3];  // (q, qd, tau, f_ext, gravity) -> qdd
+  aba.in[1] = r.qd.data(), aba.in[2] = r.tau.data(), aba.real[4] = kGravity, aba.out[0] = r.out.data();
+  auto& did = r.args[4];  // (q, qd, qdd, gravity, f_ext) -> (_, dtau_dq, dtau_dqd)
+  did.in[1] = r.qd.data(), did.in[2] = r.qdd.data(), did.real[3] = kGravity;
+  did.out[1] = r.out.data(), did.out[2] = r.out2.data();
+  auto& dfd = r.args[5];  // (q, qd, tau, f_ext, gravity) -> (dqdd_dq, dqdd_dqd, qdd)
+  dfd.in[1] = r.qd.data(), dfd.in[2] = r.tau.data(), dfd.real[4] = kGravity;
+  dfd.out[0] = r.out.data(), dfd.out[1] = r.out2.data(), dfd.out[2] = r.acc.data();
+  return true;
+}
+
 std::vector<Operation> operations() {
   std::vector<Operation> ops;
 
@@ -250,6 +314,18 @@ std::vector<Operation> operations() {
                                  t + 3 * n3);
                  },
                  nullptr, nullptr});
+
+  // the _generated rows, after the rest: the same Pinocchio call and comparison as the generic row
+  for (int k = 0; k < 6; ++k)
+    for (size_t j = 0; j < ops.size(); ++j)
+      if (ops[j].name == kGenerated[k][0]) {
+        Operation g = ops[j];
+        g.name += "_generated";
+        g.note = "the same through the robot's compiled instance (Handle::specialize)";
+        g.rbdkit = kGeneratedCalls[k];
+        ops.push_back(g);
+        break;
+      }
   return ops;
 }
 
@@ -311,6 +387,12 @@ std::unique_ptr<Robot> load_robot(const std::string& dir, const std::string& urd
   return r;
 }
 
+// op's rbdkit side on r: none for Pinocchio-alone rows, and for _generated rows of a robot without instance
+void (*rbdkit_call(const Operation& op, const Robot& r))(Robot&) {
+  const bool gen = op.name.size() > 10 && op.name.compare(op.name.size() - 10, 10, "_generated") == 0;
+  return gen && !r.instance ? nullptr : op.rbdkit;
+}
+
 // ---- the agreement check; false when a fixed-base robot is off
 bool check_agreement(std::vector<std::unique_ptr<Robot>>& robots, const std::vector<Operation>& ops) {
   bool ok = true;
@@ -324,7 +406,7 @@ bool check_agreement(std::vector<std::unique_ptr<Robot>>& robots, const std::vec
     Robot& r = *rp;
     std::fprintf(stderr, "  %-16s", r.name.c_str());
     for (const Operation& op : ops) {
-      if (!op.rbdkit || !op.pinocchio || !op.compare) continue;
+      if (!rbdkit_call(op, r) || !op.pinocchio || !op.compare) continue;
       op.rbdkit(r);
       op.pinocchio(r);
       const double d = op.compare(r);
@@ -360,7 +442,7 @@ void register_benchmarks(std::vector<std::unique_ptr<Robot>>& robots, const std:
     for (auto& rp : robots) {
       Robot* r = rp.get();
       // the two sides of one (operation, robot) are registered next to each other
-      if (op.rbdkit) {
+      if (rbdkit_call(op, *r)) {
         auto call = op.rbdkit;
         add("rbdkit/" + op.name + "/" + r->name,
             [r, call](benchmark::State& st) { timed_loop(st, *r, call, r->out.data()); });
@@ -394,7 +476,7 @@ void count_calls(std::vector<std::unique_ptr<Robot>>& robots, const std::vector<
   };
   for (const Operation& op : ops)
     for (auto& rp : robots) {
-      if (op.rbdkit) loop("rbdkit/" + op.name + "/" + rp->name, *rp, op.rbdkit);
+      if (rbdkit_call(op, *rp)) loop("rbdkit/" + op.name + "/" + rp->name, *rp, op.rbdkit);
       if (op.pinocchio) loop("pinocchio/" + op.name + "/" + rp->name, *rp, op.pinocchio);
     }
 #else
@@ -435,6 +517,7 @@ int main(int argc, char** argv) {
     unsigned seed = 1;
     for (const char* urdf : {"iiwa", "hyq", "atlas"}) robots.push_back(load_robot(dir, urdf, false, seed++));
     for (const char* urdf : {"hyq", "atlas"}) robots.push_back(load_robot(dir, urdf, true, seed++));
+    for (auto& r : robots) load_generated(*r);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench: loading the robots from %s: %s\n", dir.c_str(), e.what());
     return 1;

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # On a machine with an NVIDIA GPU: build with the real CUDA kernels, run the
 # CUDA-vs-CPU tests on the device (C++ and, where NumPy is installed, Python
-# with device arrays through PyTorch or CuPy when one is there), run
+# with device arrays through PyTorch or CuPy when one is there, and rbdkit.jax
+# on XLA's GPU buffers when JAX has its CUDA platform), run
 # compute-sanitizer (memcheck, racecheck) on a small batch, and
 # bench/gpu.py. Prints one summary table at the end; record it, with the
 # GPU's name, in docs/gpu.md.
@@ -83,6 +84,10 @@ if [[ "$prebuilt" == 1 ]] || "$PY" -c "import numpy, nanobind, scikit_build_core
   if "$PY" -c "import torch; assert torch.cuda.is_available()" 2>/dev/null; then
     step "rbdkit.torch on CUDA tensors" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q -p no:cacheprovider \
       tests/python/test_torch.py -k cuda
+  fi
+  if "$PY" -c "import jax; assert jax.default_backend() == 'gpu'" 2>/dev/null; then
+    step "rbdkit.jax on GPU arrays (XLA's CUDA platform)" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q \
+      -p no:cacheprovider tests/python/test_jax.py -k cuda
   fi
   step "bench/gpu.py" "$PY" bench/gpu.py "${bench_args[@]}" --out build/gpu/gpu_bench.md
 else

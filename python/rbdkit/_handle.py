@@ -28,10 +28,22 @@ that takes one (the integrators, the plant step, the costs); on a model with
 free-flyer or spherical joints a MuJoCo handle refuses the operations that
 take none, but for the conversions between the conventions. Those
 decisions are the C++ handle's.
+
+Specialised code. Handle(model, specialize=True) generates the robot's
+header (rbdkit.generate), compiles it with the system's C++ compiler ($CXX,
+else c++) into a shared library cached per model, compiler, flags and
+rbdkit's headers ($RBDKIT_CACHE_DIR, else ~/.cache/rbdkit: the first handle
+of a robot takes seconds, later ones load the library) and loads it: float64
+single-sample calls of the dynamics, M, M⁻¹, their first derivatives and the
+step then run its per-robot kernels, with the same results (batches stay on
+the batch engine). Without a compiler (or on backend="cuda") it warns once
+and keeps the generic kernels; `specialized` says which is in use
+(docs/generated-code.md).
 """
 
 import inspect
 import os
+import warnings
 
 import numpy as np
 
@@ -132,13 +144,29 @@ def _check_algorithms(algorithms):
     return tuple(_core.resolve_algorithms(sorted(algorithms)))
 
 
+_SPECIALIZE_WARNED = set()
+
+
+def _specialize(core):
+    """loads the handle's compiled instance (compiling it first if not cached): whether it is in
+    use; if not, warns once per reason and the generic kernels stay"""
+    from ._codegen import include_dir
+    ok, detail = core.specialize("", "", include_dir())
+    if not ok and detail not in _SPECIALIZE_WARNED:
+        _SPECIALIZE_WARNED.add(detail)
+        warnings.warn(f"rbdkit: specialize=True fell back to the generic kernels: {detail}", RuntimeWarning,
+                      stacklevel=3)
+    return ok
+
+
 class Handle:
     """Operations of a model on batched arrays (module doc). Attributes:
     model, rbd (the float64 rbdkit.RBD reference path), algorithms (resolved),
-    backend, dtype (numpy dtype), threads, output_convention."""
+    backend, dtype (numpy dtype), threads, output_convention, specialized
+    (whether the compiled per-robot kernels are in use: module doc)."""
 
     def __init__(self, model, algorithms=None, backend="cpu", dtype="float64", threads=None,
-                 output_convention="pinocchio", stream=None):
+                 output_convention="pinocchio", stream=None, specialize=False):
         if isinstance(model, (str, os.PathLike)):
             model = Model.from_urdf(model)
         if not isinstance(model, Model):
@@ -159,6 +187,9 @@ class Handle:
                                     self.output_convention, self.backend)
         if stream is not None:
             self.set_stream(stream)
+        if not isinstance(specialize, (bool, np.bool_)):
+            raise TypeError(f"specialize: expected True or False, got {type(specialize).__name__}")
+        self.specialized = bool(specialize) and _specialize(self._core)
         for op in self._core.operations():
             self.__dict__[op] = self._core.op(op, True)
 

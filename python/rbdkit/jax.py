@@ -1,6 +1,7 @@
 """rbdkit.jax: the operations of rbdkit.Handle as JAX functions, under jit,
 vmap and automatic differentiation, computed by rbdkit's C++ batch engine
-through an XLA FFI custom call (no host callback, no copy).
+through an XLA FFI custom call (no host callback, no copy), or on a GPU by
+its CUDA kernels.
 
     import rbdkit, rbdkit.jax
     h = rbdkit.jax.Handle(rbdkit.robots.load("iiwa"))
@@ -66,6 +67,17 @@ the unsharded call's:
     qs, qds, us = (jax.device_put(a, NamedSharding(mesh, P("batch"))) for a in (q, qd, u))
     qdd = jax.jit(h.forward_dynamics)(qs, qds, us)          # each device its own samples
     fd = jax.shard_map(h.forward_dynamics, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"))
+
+GPUs. Handle(model, backend="cuda") runs the calls on the CUDA backend. On
+JAX's GPU platform (jax with CUDA, arrays on a GPU) the custom call reads and
+writes XLA's device buffers in place, on XLA's stream: no copy to the host,
+one launch per call. The handle's CUDA engine lives on the device that was
+current when it was made (device 0 unless changed); arrays on another GPU
+are an error that says so. Arrays on JAX's CPU platform, given to a cuda
+handle, are copied to its device and back. backend=None (the default)
+chooses "cuda" when JAX's default backend is a GPU and this rbdkit build has
+the real kernels, else "cpu"; a cpu handle given GPU arrays raises an
+error that names backend="cuda".
 
 Floating bases and spherical joints (quaternion coordinates). rbdkit's
 derivatives live in the tangent space: δq is a velocity-like vector of nv
@@ -137,7 +149,7 @@ def _register():
                           "was built): pip install 'jax[cpu]', then reinstall rbdkit with JAX visible to the build "
                           "(pip install --no-build-isolation ., or ./test.sh)")
     for platform, capsule in handlers.items():
-        jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)
+        jax.ffi.register_ffi_target(_TARGET, capsule, platform=platform)  # cpu, and CUDA where built
     _registered = True
 
 
@@ -225,14 +237,27 @@ def _check_x64(dtype):
                          "True) before creating arrays), or use dtype='float32'")
 
 
+def _default_backend():
+    """"cuda" where JAX computes on a GPU and this build has the real kernels, else "cpu" """
+    from ._handle import cuda_available
+    compiled, devices = cuda_available()
+    return "cuda" if compiled and devices > 0 and jax.default_backend() == "gpu" else "cpu"
+
+
 class Handle:
     """A robot's operations as JAX functions (module doc). Attributes: model,
-    numpy (the rbdkit.Handle that runs the calls), dtype, nq, nv, nb."""
+    numpy (the rbdkit.Handle that runs the calls), dtype, nq, nv, nb, backend
+    ("cpu": the batch engine; "cuda": the CUDA kernels, on XLA's GPU buffers
+    in place; None chooses, module doc "GPUs")."""
 
-    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio"):
+    def __init__(self, model, algorithms=None, dtype="float64", threads=None, output_convention="pinocchio",
+                 backend=None):
         _register()
-        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), "cpu", dtype, threads,
+        if backend is None:
+            backend = _default_backend()
+        self.numpy = _NumpyHandle(model, with_derivative_algorithms(algorithms), backend, dtype, threads,
                                   output_convention)
+        self.backend = self.numpy.backend
         _check_x64(self.numpy.dtype)
         self.model = self.numpy.model
         self.dtype = self.numpy.dtype

@@ -1,9 +1,11 @@
 // python/src/bind_jax.cpp — the framework calls: rbdkit_run_raw, one call of
 // any registered operation on raw arrays (rbdkit.torch's kernel, `run_raw`),
-// and the XLA FFI handler behind rbdkit.jax: one
-// handler, `rbdkit_op`, runs any registered operation of an rbd::Handle on
-// XLA's buffers, in place (no copy), on the CPU through the handle's batch
-// engine. rbdkit/jax.py lays out each call (OpHandle.plan) and passes:
+// and the XLA FFI handlers behind rbdkit.jax: one
+// target, `rbdkit_op`, runs any registered operation of an rbd::Handle on
+// XLA's buffers, in place (no copy): on the CPU platform through the handle's
+// batch engine, on the CUDA platform (builds with the real kernels) through a
+// backend="cuda" handle's kernels on XLA's stream. rbdkit/jax.py lays out
+// each call (OpHandle.plan) and passes:
 //   arrays   the present array arguments, in argument order, each
 //            (*batch, per-sample shape) in the handle's dtype (XLA's row-major
 //            layout, the engine's)
@@ -26,11 +28,13 @@
 
 #include <cstdint>
 #include <exception>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "rbdkit/cuda/cuda_engine.hpp"
 #include "rbdkit/handle/handle.hpp"
 #include "rbdkit/ops/table.hpp"
 
@@ -110,10 +114,11 @@ namespace ffi = xla::ffi;
 
 namespace {
 
-ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t handle, int64_t op_id,
+// one custom call: the buffers' addresses and sizes handed to rbdkit_run_raw (device: XLA's GPU
+// buffers, run on the handle's CUDA engine)
+ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, rbd::Handle* h, int64_t op_id,
                   ffi::Span<const int64_t> slots, ffi::Span<const int64_t> outputs, ffi::Span<const double> reals,
-                  ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee) {
-  rbd::Handle* h = reinterpret_cast<rbd::Handle*>(handle);
+                  ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee, bool device) {
   if (!h) return ffi::Error::InvalidArgument("rbdkit_op: no handle");
   const ffi::DataType want = h->dtype() == "float32" ? ffi::DataType::F32 : ffi::DataType::F64;
   if (slots.size() != args.size() || outputs.size() != rets.size())
@@ -141,15 +146,65 @@ ffi::Error run_op(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t hand
   const std::string err = rbdkit_run_raw(
       h, op_id, slots.begin(), ins.data(), in_counts.data(), ins.size(), outputs.begin(), outs.data(),
       out_counts.data(), outs.size(), reals.begin(), reals.size(), choices.begin(), choices.size(), ee.begin(),
-      ee.size(), -1, want == ffi::DataType::F32 ? sizeof(float) : sizeof(double), false, invalid);
+      ee.size(), -1, want == ffi::DataType::F32 ? sizeof(float) : sizeof(double), device, invalid);
   if (err.empty()) return ffi::Error::Success();
   return invalid ? ffi::Error::InvalidArgument(err) : ffi::Error::Internal(err);
 }
 
+// on the CPU platform: host buffers, through the handle's batch engine (or, on a backend="cuda"
+// handle, copied to its device and back)
+ffi::Error run_op_cpu(ffi::RemainingArgs args, ffi::RemainingRets rets, int64_t handle, int64_t op_id,
+                      ffi::Span<const int64_t> slots, ffi::Span<const int64_t> outputs, ffi::Span<const double> reals,
+                      ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee) {
+  return run_op(args, rets, reinterpret_cast<rbd::Handle*>(handle), op_id, slots, outputs, reals, choices, ee, false);
+}
+
+// CUDA's stream type, declared so that this file needs no CUDA header (the handler only passes it on)
+struct CudaStreamOpaque;
+using CudaStream = CudaStreamOpaque*;
+
+// on the CUDA platform: XLA's device buffers, read and written in place by the handle's kernels on
+// XLA's stream (no copy to the host; the call waits for its kernels, and copies back one failure flag).
+// The handle must be a backend="cuda" one, on the device XLA runs the call on.
+ffi::Error run_op_cuda(CudaStream stream, int32_t device_ordinal, ffi::RemainingArgs args, ffi::RemainingRets rets,
+                       int64_t handle, int64_t op_id, ffi::Span<const int64_t> slots, ffi::Span<const int64_t> outputs,
+                       ffi::Span<const double> reals, ffi::Span<const int64_t> choices, ffi::Span<const int64_t> ee) {
+  rbd::Handle* h = reinterpret_cast<rbd::Handle*>(handle);
+  if (!h) return ffi::Error::InvalidArgument("rbdkit_op: no handle");
+  if (h->backend() != rbd::Backend::CUDA || !h->cuda())
+    return ffi::Error::InvalidArgument(
+        "rbdkit.jax: the arrays are on a GPU, and this handle runs on the CPU: make it with "
+        "rbdkit.jax.Handle(model, backend='cuda'), or put the arrays on the CPU (jax.device_put(x, "
+        "jax.devices('cpu')[0]))");
+  if (device_ordinal != h->cuda()->device_ordinal())
+    return ffi::Error::InvalidArgument("rbdkit.jax: the arrays are on GPU " + std::to_string(device_ordinal) +
+                                       ", and the handle's CUDA engine on GPU " +
+                                       std::to_string(h->cuda()->device_ordinal()) +
+                                       ": a backend='cuda' handle runs on the device that was current when it was made");
+  // the stream is the engine's for the length of the call (calls on one engine serialise)
+  static std::mutex stream_lock;
+  std::lock_guard<std::mutex> lk(stream_lock);
+  h->cuda()->set_stream(stream);
+  return run_op(args, rets, h, op_id, slots, outputs, reals, choices, ee, true);
+}
+
 }  // namespace
 
-XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op,
+XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op_cpu,
                               ffi::Ffi::Bind()
+                                  .RemainingArgs()
+                                  .RemainingRets()
+                                  .Attr<int64_t>("handle")
+                                  .Attr<int64_t>("op")
+                                  .Attr<ffi::Span<const int64_t>>("slots")
+                                  .Attr<ffi::Span<const int64_t>>("outputs")
+                                  .Attr<ffi::Span<const double>>("reals")
+                                  .Attr<ffi::Span<const int64_t>>("choices")
+                                  .Attr<ffi::Span<const int64_t>>("ee"));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cuda, run_op_cuda,
+                              ffi::Ffi::Bind()
+                                  .Ctx<ffi::PlatformStream<CudaStream>>()
+                                  .Ctx<ffi::DeviceOrdinal>()
                                   .RemainingArgs()
                                   .RemainingRets()
                                   .Attr<int64_t>("handle")
@@ -268,6 +323,9 @@ void bind_jax(nb::module_& m) {
     nb::dict d;
     // a capsule without a name, as jax.ffi.pycapsule makes (XLA reads it with a null name)
     d["cpu"] = nb::steal(PyCapsule_New(reinterpret_cast<void*>(&rbdkit_jax_op_cpu), nullptr, nullptr));
+    // XLA's GPU buffers, where this build has the real kernels (backend="cuda" handles)
+    if (rbd::CudaEngine::cuda_compiled())
+      d["CUDA"] = nb::steal(PyCapsule_New(reinterpret_cast<void*>(&rbdkit_jax_op_cuda), nullptr, nullptr));
     return d;
 #else
     return nb::none();

@@ -21,6 +21,7 @@
 #include <numpy/arrayobject.h>
 
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
@@ -818,6 +819,19 @@ void bind_ops(nb::module_& m) {
         else h.h->cuda()->use_own_stream();
       }, "stream"_a.none())
       .def_prop_ro("dtype", [](const OpHandle& h) { return h.h->dtype(); })
+      // the compiled per-robot instance (Handle::specialize): (in use, why not / its library)
+      .def("specialize",
+           [](OpHandle& h, const std::string& cache_dir, const std::string& compiler, const std::string& include_dir) {
+             rbd::SpecializeOptions o;
+             o.cache_dir = cache_dir, o.compiler = compiler, o.include_dir = include_dir;
+             bool ok;
+             {
+               nb::gil_scoped_release nogil;  // a first compilation takes seconds
+               ok = h.h->specialize(o);
+             }
+             return std::make_pair(ok, ok ? h.h->instance_library() : h.h->specialize_error());
+           }, "cache_dir"_a, "compiler"_a, "include_dir"_a)
+      .def_prop_ro("specialized", [](const OpHandle& h) { return h.h->specialized(); })
       .def("has", [](const OpHandle& h, const std::string& name) { return h.h->has(name); }, "name"_a)
       // the registered operations this handle runs, in registry order
       .def("operations",

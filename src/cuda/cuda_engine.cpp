@@ -323,6 +323,7 @@ int CudaEngine::device_count() { return cuda::cuda_device_count(); }
 bool CudaEngine::interpret() const { return impl_->interpret; }
 const std::string& CudaEngine::dtype() const { return impl_->dtype; }
 std::string CudaEngine::device_name() const { return impl_->dev->name(); }
+int CudaEngine::device_ordinal() const { return impl_->dev->ordinal(); }
 void CudaEngine::set_stream(void* s) {
   std::lock_guard<std::mutex> lk(impl_->call);
   impl_->stream = s;

@@ -37,6 +37,7 @@ struct CudaDevice : Device {
   }
   void activate() override { check(cudaSetDevice(id), "cudaSetDevice"); }
   std::string name() const override { return device; }
+  int ordinal() const override { return id; }
   DeviceLimits limits() const override { return lim; }
   void* alloc(size_t bytes) override {
     void* p = nullptr;

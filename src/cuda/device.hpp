@@ -18,6 +18,7 @@ namespace cuda {
 struct Device {
   virtual ~Device() = default;
   virtual std::string name() const = 0;
+  virtual int ordinal() const { return 0; }  // the CUDA device's index (interpret mode: 0)
   virtual DeviceLimits limits() const = 0;
   virtual void* alloc(size_t bytes) = 0;  // throws std::runtime_error when out of memory
   virtual void release(void* p) = 0;

@@ -206,6 +206,25 @@ void Handle::check(int op, const ops::OpCall& call, bool values) const {
   else ops::check_call<double>(model_, *e.spec, call, values);
 }
 
+bool Handle::specialize(const SpecializeOptions& options) {
+  std::lock_guard<std::mutex> lk(run_);  // (the serial loop reads instance_ under it)
+  if (cuda_) {
+    specialize_error_ = "specialize: a backend='cuda' handle runs the CUDA backend's kernels; an instance serves the "
+                        "CPU's serial loop";
+    return false;
+  }
+  try {
+    instance_ = load_instance(model_, options);
+    specialize_error_.clear();
+  } catch (const std::exception& e) {
+    instance_.reset();
+    specialize_error_ = e.what();
+  }
+  return instance_ != nullptr;
+}
+
+std::string Handle::instance_library() const { return instance_ ? instance_path(*instance_) : std::string(); }
+
 void Handle::run(int op, const ops::OpCall& call) {
   check(op, call);
   resolve_and_dispatch(op, call, false);
@@ -254,7 +273,12 @@ void Handle::dispatch(int op, const ops::OpCall& call, bool device_arrays) {
   const long n = ops::scratch_values(*e.spec, model_);
   if (static_cast<long>(op_scratch_.size()) < n) op_scratch_.resize(static_cast<size_t>(n));
   Workspace<double>& w = ws_.get(model_, ops::workspace_layout(*e.spec, model_));
-  if (dtype_ != "float32") return ops::run_serial(model_, e, call, w, op_scratch_.data());
+  if (dtype_ != "float32") {
+    // the compiled instance's kernel for this operation, where the handle has one
+    const ops::Kernel<double> k = instance_ ? instance_kernel(*instance_, op) : nullptr;
+    if (k) return ops::run_serial(model_, ops::OpEntry{e.id, e.spec, k}, call, w, op_scratch_.data());
+    return ops::run_serial(model_, e, call, w, op_scratch_.data());
+  }
   // float32 on a model without joints (a frame's placement): the float64 loop, rounded
   const ops::OpSpec& spec = *e.spec;
   ops::OpCall d = call;

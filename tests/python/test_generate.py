@@ -271,3 +271,65 @@ def test_cli_and_errors(tmp_path):
         rbdkit.generate("iiwa", "X")
     with pytest.raises(ValueError, match="name: expected a C\\+\\+ identifier"):
         rbdkit.generate(rbdkit.robots.load("iiwa"), "a-b")
+
+
+# ---- Handle(model, specialize=True): the compiled per-robot instance inside rbdkit
+
+SPECIALIZED_CALLS = [  # (operation, arguments after the state) of every kernel an instance has
+    ("inverse_dynamics", lambda q, qd, u, f: (q, qd, u), {}),
+    ("inverse_dynamics", lambda q, qd, u, f: (q, qd, u), {"f_ext": True}),
+    ("nonlinear_effects", lambda q, qd, u, f: (q, qd), {}),
+    ("generalized_gravity", lambda q, qd, u, f: (q,), {}),
+    ("crba", lambda q, qd, u, f: (q,), {}),
+    ("minv", lambda q, qd, u, f: (q,), {}),
+    ("aba", lambda q, qd, u, f: (q, qd, u), {"f_ext": True}),
+    ("forward_dynamics", lambda q, qd, u, f: (q, qd, u), {}),
+    ("inverse_dynamics_gradient", lambda q, qd, u, f: (q, qd, u), {}),
+    ("forward_dynamics_gradient", lambda q, qd, u, f: (q, qd, u), {"f_ext": True}),
+    ("integrator", lambda q, qd, u, f: (q, qd, u, 0.01, "rk4"), {"f_ext": True}),
+    ("integrator_gradient", lambda q, qd, u, f: (q, qd, u, 0.01, "midpoint"), {}),
+]
+
+
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("mimic", False)])
+def test_specialized_handle_agrees_with_the_generic_one(name, floating):
+    # the instance's kernels run the float64 serial loop (single samples; a batch, B = 3, runs on the
+    # engine either way); they agree with the generic kernels at 1e-12 of each output's scale, f_ext
+    # included
+    compiler("c++")
+    model = load(name, floating)
+    spec, generic = rbdkit.Handle(model, specialize=True), rbdkit.Handle(model)
+    assert spec.specialized and not generic.specialized
+    rng = np.random.default_rng(5)
+    for B in (None, 3):
+        n = 1 if B is None else B
+        q = np.stack([model.random_configuration(rng) for _ in range(n)])
+        qd, u = rng.uniform(-1, 1, (2, n, model.nv))
+        f = 0.3 * rng.uniform(-1, 1, (n, model.nb, 6))
+        if B is None:
+            q, qd, u, f = q[0], qd[0], u[0], f[0]
+        for op, args, kw in SPECIALIZED_CALLS:
+            kwargs = {"f_ext": f} if kw.get("f_ext") else {}
+            got, want = (getattr(h, op)(*args(q, qd, u, f), **kwargs) for h in (spec, generic))
+            for a, b in zip(got if isinstance(got, tuple) else [got], want if isinstance(want, tuple) else [want]):
+                # relative to the output's scale (the instance and the library may round differently:
+                # other flags, and the compiler's contraction of products into FMAs)
+                assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(b))), f"{op} B={B}"
+
+
+def test_specialize_falls_back_with_a_warning(monkeypatch, tmp_path):
+    # no compiler: one RuntimeWarning that says why, the generic kernels, the same numbers
+    monkeypatch.setenv("RBDKIT_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CXX", str(tmp_path / "no-such-compiler"))
+    model = rbdkit.robots.load("iiwa")
+    with pytest.warns(RuntimeWarning, match="specialize=True fell back to the generic kernels: .*no C\\+\\+ compiler"):
+        h = rbdkit.Handle(model, specialize=True)
+    assert not h.specialized
+    q = model.random_configuration(np.random.default_rng(0))
+    np.testing.assert_array_equal(h.crba(q), rbdkit.Handle(model).crba(q))
+    import warnings
+    with warnings.catch_warnings():  # once per reason
+        warnings.simplefilter("error")
+        assert not rbdkit.Handle(model, specialize=True).specialized
+    with pytest.raises(TypeError, match="specialize: expected True or False"):
+        rbdkit.Handle(model, specialize="yes")

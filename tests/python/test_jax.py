@@ -529,3 +529,94 @@ def test_system_identification_example_converges(tmp_path):
     assert r["torque_error_final"] < r["torque_error_start"] / 100
     assert r["mass_error_final"] < r["mass_error_start"] / 50
     assert plot.stat().st_size > 0
+
+
+def _cuda_backend_against_cpu(hc, h, q, qd, u, tol):
+    """a backend="cuda" handle's values and gradients, jitted, against the CPU handle's"""
+    for op, args in (("inverse_dynamics", (q, qd, u)), ("forward_dynamics", (q, qd, u)), ("crba", (q,)),
+                     ("forward_dynamics_gradient", (q, qd, u))):
+        for a, b in zip(as_list(jax.jit(getattr(hc, op))(*args)), as_list(getattr(h, op)(*args))):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=tol, atol=tol, err_msg=op)
+    step = lambda hh: jax.jit(lambda q, qd, u: hh.integrator(q, qd, u, 0.01, "rk4"))  # noqa: E731
+    np.testing.assert_allclose(np.asarray(step(hc)(q, qd, u)), np.asarray(step(h)(q, qd, u)), rtol=tol, atol=tol)
+    loss = lambda hh: jax.jit(jax.grad(lambda q, qd, u: (hh.forward_dynamics(q, qd, u) ** 2).sum(),  # noqa: E731
+                                       argnums=(0, 1, 2)))
+    for a, b in zip(loss(hc)(q, qd, u), loss(h)(q, qd, u)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=tol, atol=tol)
+
+
+def test_cuda_backend_in_interpret_mode(monkeypatch):
+    # backend="cuda" on JAX's CPU platform: the arrays are host buffers the CUDA backend copies to its
+    # device; in interpret mode (the kernels' source on the CPU) values and the derivative rules through
+    # it equal the CPU handle's. XLA's GPU buffers need a GPU: test_cuda_arrays_on_the_device
+    monkeypatch.setenv("RBDKIT_CUDA_INTERPRET", "1")
+    model = rbdkit.robots.load("hyq", floating_base=True)
+    hc, h = rj.Handle(model, backend="cuda", threads=1), rj.Handle(model, backend="cpu", threads=1)
+    assert (hc.backend, h.backend) == ("cuda", "cpu")
+    with jax.default_device(jax.devices("cpu")[0]):
+        _cuda_backend_against_cpu(hc, h, *states(h, 4, seed=3), 1e-10)
+    # the default chooses the CPU where JAX computes on the CPU
+    if jax.default_backend() == "cpu":
+        assert rj.Handle(model, threads=1).backend == "cpu"
+
+
+def test_cuda_arrays_on_the_device(monkeypatch):
+    # on a GPU with JAX's CUDA platform (scripts/gpu-check.sh): the custom call's CUDA handler reads and
+    # writes XLA's device buffers in place on XLA's stream; values and gradients, jitted, equal the
+    # CPU handle's; a CPU handle given GPU arrays says backend="cuda". Without one (CI), a cuda
+    # handle outside interpret mode is a clear error
+    monkeypatch.delenv("RBDKIT_CUDA_INTERPRET", raising=False)
+    model = rbdkit.robots.load("hyq", floating_base=True)
+    compiled, devices = rbdkit.cuda_available()
+    gpus = [d for d in jax.devices() if d.platform == "gpu"] if jax.default_backend() == "gpu" else []
+    if os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1" or not (compiled and devices > 0 and gpus):
+        assert os.environ.get("RBDKIT_TEST_CUDA_DEVICE") != "1", "RBDKIT_TEST_CUDA_DEVICE=1 needs JAX on a GPU"
+        if compiled and devices > 0:
+            assert rj.Handle(model, backend="cuda").backend == "cuda"
+            return
+        with pytest.raises(RuntimeError, match="RBDKIT_CUDA_INTERPRET=1"):
+            rj.Handle(model, backend="cuda")
+        return
+    hc, h = rj.Handle(model), rj.Handle(model, backend="cpu", threads=1)
+    assert hc.backend == "cuda"  # the default on JAX's GPU platform
+    q, qd, u = states(h, 64, seed=4)
+    gq, gqd, gu = (jax.device_put(a, gpus[0]) for a in (q, qd, u))
+    out = jax.jit(hc.forward_dynamics)(gq, gqd, gu)
+    assert out.devices() == {gpus[0]}
+    with jax.default_device(jax.devices("cpu")[0]):
+        cq, cqd, cu = (jax.device_put(a, jax.devices("cpu")[0]) for a in (q, qd, u))
+        np.testing.assert_allclose(np.asarray(out), np.asarray(h.forward_dynamics(cq, cqd, cu)), rtol=1e-9, atol=1e-9)
+        ref = [np.asarray(a) for a in jax.grad(lambda q, qd, u: (h.forward_dynamics(q, qd, u) ** 2).sum(),
+                                               argnums=(0, 1, 2))(cq, cqd, cu)]
+    got = jax.jit(jax.grad(lambda q, qd, u: (hc.forward_dynamics(q, qd, u) ** 2).sum(), argnums=(0, 1, 2)))(gq, gqd, gu)
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(np.asarray(a), b, rtol=1e-8, atol=1e-8)
+    # the rk4 step and its [A | B] on the device, under vmap over a second batch axis
+    step = jax.jit(jax.vmap(lambda q, qd, u: hc.integrator(q, qd, u, 0.01, "rk4")))
+    x = step(gq.reshape(8, 8, -1), gqd.reshape(8, 8, -1), gu.reshape(8, 8, -1))
+    np.testing.assert_allclose(np.asarray(x).reshape(64, -1), h.numpy.integrator(q, qd, u, 0.01, "rk4"),
+                               rtol=1e-9, atol=1e-9)
+    # a CPU handle's call on GPU arrays names the backend it needs
+    with pytest.raises(Exception, match="backend='cuda'"):
+        jax.block_until_ready(jax.jit(h.crba)(gq))
+
+
+def test_frameworks_benchmark_runs(tmp_path):
+    # bench/frameworks.py (issue 15's overhead benchmark), a short run: a row per operation, each with
+    # the three calls timed (the values are the tests above's)
+    out = tmp_path / "frameworks.json"
+    r = subprocess.run([sys.executable, os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "bench",
+                                                     "frameworks.py"), "--quick", "--batch", "2", "--robots", "iiwa",
+                        "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    import json
+    rows = json.loads(out.read_text())["rows"]
+    assert [row["op"] for row in rows] == ["inverse_dynamics", "forward_dynamics", "crba", "integrator_rk4",
+                                           "forward_dynamics_grad"]
+    assert all(row[k] > 0 for row in rows for k in ("numpy_us", "jax_us", "torch_us"))
+    # --device cuda without a GPU is a clear refusal, not a crash
+    if jax.default_backend() != "gpu":
+        r = subprocess.run([sys.executable, os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "bench",
+                                                         "frameworks.py"), "--quick", "--device", "cuda"],
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode != 0 and "--device cuda needs" in r.stderr

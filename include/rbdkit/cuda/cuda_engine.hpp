@@ -63,6 +63,8 @@ class CudaEngine {
   const std::string& dtype() const;
   // "interpret (CPU)" or the device's name
   std::string device_name() const;
+  // the CUDA device's index every call runs on (interpret mode: 0)
+  int device_ordinal() const;
   // the stream launches go on: a cudaStream_t (null: the default stream), or the engine's own
   void set_stream(void* stream);
   void use_own_stream();

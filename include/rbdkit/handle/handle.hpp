@@ -32,6 +32,10 @@
 // (cuda/cuda_engine.hpp; RBDKIT_CUDA_INTERPRET=1: the kernels' source on the
 // CPU): the same checks, the same results, host arrays copied in and out, or
 // device arrays in place (run_device).
+//
+// specialize() loads the robot's compiled instance (codegen/specialize.hpp):
+// the float64 serial loop then runs its per-robot kernels for the operations
+// it has (the dynamics, M, M⁻¹, their first derivatives, the step).
 #pragma once
 
 #include <Eigen/Core>
@@ -41,6 +45,7 @@
 
 #include "rbdkit/batch/dynamics.hpp"
 #include "rbdkit/batch/engine.hpp"
+#include "rbdkit/codegen/specialize.hpp"
 #include "rbdkit/cuda/cuda_engine.hpp"
 
 namespace rbd {
@@ -120,6 +125,17 @@ class Handle {
   // copied to the host to word the same error)
   void run_device(int op, const ops::OpCall& call);
   bool has_op(int op) const { return op >= 0 && op < static_cast<int>(op_enabled_.size()) && op_enabled_[op]; }
+
+  // ---- a compiled per-robot instance (codegen/specialize.hpp): compiled on first use (cached
+  // after), then the serial loop (float64: one sample, or every call of a threads = 0 handle) runs
+  // its kernels for the operations it has. Returns whether it is in use; when it could not be made
+  // (no compiler, a failed compilation, a CUDA handle: its kernels are the CUDA backend's),
+  // false, the generic kernels stay, and specialize_error() says why.
+  bool specialize(const SpecializeOptions& options = {});
+  bool specialized() const { return instance_ != nullptr; }
+  const std::string& specialize_error() const { return specialize_error_; }
+  // the instance's library ("" when not specialized)
+  std::string instance_library() const;
 
   // ---- dynamics
   // tau (B x nv); qdd, fext may be null
@@ -216,6 +232,8 @@ class Handle {
   std::unique_ptr<Engine> engine_;  // null when threads = 0 (and dtype float64), and on Backend::CUDA
   Backend backend_ = Backend::CPU;
   std::unique_ptr<CudaEngine> cuda_;  // Backend::CUDA
+  std::shared_ptr<const Instance> instance_;  // specialize(): the compiled per-robot kernels
+  std::string specialize_error_;
 };
 
 }  // namespace rbd

@@ -1,0 +1,54 @@
+// rbdkit/codegen/specialize.hpp — per-robot compiled instances
+// (Handle::specialize, rbdkit.Handle(model, specialize=True)).
+//
+// An instance is the robot's generated header (codegen/generate.hpp) and the
+// per-sample kernels of the registered operations single calls use most
+// (codegen/instance.hpp), compiled by the system's C++ compiler into a shared
+// library and loaded with dlopen. Its kernels are the registry's own, run on
+// the robot's bodies written as literals, so the compiler sees every joint
+// type, parent and size as a constant. A handle's float64 serial loop (one
+// sample, or every call of a handle with threads = 0) then runs them instead
+// of the generic kernels; everything else is unchanged.
+//
+// Libraries are cached: <cache>/<robot>-<key>.so, where the key hashes the
+// instance's source (so the model), the compiler, its flags, the instance
+// ABI and every rbdkit header the source includes. A second handle on the
+// same model loads the cached library (in one process, the one already
+// loaded); a changed model, compiler, flag or header compiles a new one.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "rbdkit/ops/table.hpp"
+#include "rbdkit/parsers/model.hpp"
+
+namespace rbd {
+
+struct SpecializeOptions {
+  // the library cache ("": $RBDKIT_CACHE_DIR, else $XDG_CACHE_HOME/rbdkit, else ~/.cache/rbdkit)
+  std::string cache_dir;
+  // the C++ compiler ("": $CXX, else c++); it must take g++'s options
+  std::string compiler;
+  // the folder holding rbdkit/ (its headers; "": the source tree this library was built from)
+  std::string include_dir;
+  std::string flags = "-O3 -march=native";
+};
+
+// a loaded instance (its library stays loaded while an instance refers to it)
+struct Instance;
+
+// the C++ source of model's instance: its generated header, then the entry points
+std::string instance_source(const Model& model);
+
+// the instance of `model`: the cached library, else compiled into the cache first. Throws
+// std::runtime_error saying why none could be made (no compiler, a failed compilation with the
+// compiler's first lines of output, a library that does not load, a model without bodies).
+std::shared_ptr<const Instance> load_instance(const Model& model, const SpecializeOptions& options = {});
+
+// the instance's kernel for registered operation `op` (ops::op_table()'s id); null where it has none
+ops::Kernel<double> instance_kernel(const Instance& instance, int op);
+// the library's path
+const std::string& instance_path(const Instance& instance);
+
+}  // namespace rbd

@@ -1,0 +1,209 @@
+// src/codegen/specialize.cpp — per-robot compiled instances: source, cache
+// key, compilation with the system's compiler, loading (rbdkit/codegen/specialize.hpp).
+#include "rbdkit/codegen/specialize.hpp"
+
+#include <dlfcn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "rbdkit/codegen/generate.hpp"
+#include "rbdkit/codegen/instance.hpp"
+
+#ifndef RBDKIT_SOURCE_INCLUDE_DIR
+#define RBDKIT_SOURCE_INCLUDE_DIR ""
+#endif
+
+namespace fs = std::filesystem;
+
+namespace rbd {
+
+struct Instance {
+  std::string path;
+  void* library = nullptr;
+  std::vector<ops::Kernel<double>> kernels;  // per registered operation (null: none)
+  ~Instance() {
+    if (library) dlclose(library);
+  }
+};
+
+namespace {
+
+constexpr const char* kStructName = "Robot";
+
+// FNV-1a, 64 bits: the cache key (not a security boundary: the cache is the user's own folder)
+struct Hash {
+  uint64_t h = 1469598103934665603ull;
+  void add(const std::string& s) {
+    for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
+    h = (h ^ 0xff) * 1099511628211ull;  // a separator: ("ab", "c") differs from ("a", "bc")
+  }
+  std::string hex() const {
+    char b[17];
+    std::snprintf(b, sizeof b, "%016llx", static_cast<unsigned long long>(h));
+    return b;
+  }
+};
+
+std::string env(const char* name) {
+  const char* v = std::getenv(name);
+  return v ? v : "";
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+// a path for the shell, in single quotes (a path with a quote in it is refused)
+std::string quoted(const std::string& s, const char* what) {
+  if (s.find('\'') != std::string::npos)
+    throw std::runtime_error(std::string("specialize: the ") + what + " '" + s + "' contains a quote");
+  return "'" + s + "'";
+}
+
+fs::path cache_folder(const SpecializeOptions& o) {
+  if (!o.cache_dir.empty()) return o.cache_dir;
+  if (!env("RBDKIT_CACHE_DIR").empty()) return env("RBDKIT_CACHE_DIR");
+  if (!env("XDG_CACHE_HOME").empty()) return fs::path(env("XDG_CACHE_HOME")) / "rbdkit";
+  if (!env("HOME").empty()) return fs::path(env("HOME")) / ".cache" / "rbdkit";
+  return fs::temp_directory_path() / "rbdkit-cache";
+}
+
+// the key: the instance ABI, the source, the compiler and its flags, and every rbdkit header (the
+// source includes most of them, and a changed one changes what the library computes)
+std::string cache_key(const std::string& source, const std::string& compiler, const std::string& flags,
+                      const fs::path& include_dir) {
+  Hash h;
+  h.add(std::to_string(instance::kAbi));
+  h.add(source);
+  h.add(compiler);
+  h.add(flags);
+  std::vector<fs::path> headers;
+  for (const auto& e : fs::recursive_directory_iterator(include_dir / "rbdkit"))
+    if (e.is_regular_file()) headers.push_back(e.path());
+  std::sort(headers.begin(), headers.end());
+  for (const fs::path& p : headers) {
+    h.add(fs::relative(p, include_dir).generic_string());
+    h.add(read_file(p));
+  }
+  return h.hex();
+}
+
+// the first lines of the compiler's output, for an error message
+std::string head(const std::string& text, int lines) {
+  size_t at = 0;
+  for (int i = 0; i < lines && at != std::string::npos; ++i) at = text.find('\n', at + 1);
+  return at == std::string::npos ? text : text.substr(0, at) + "\n...";
+}
+
+// compiles `source` into `library` (through a temporary file beside it, renamed when done, so
+// that a concurrent process never loads half a library)
+void compile(const std::string& source, const std::string& compiler, const std::string& flags,
+             const fs::path& include_dir, const fs::path& library) {
+  fs::create_directories(library.parent_path());
+  const std::string stem = library.string() + ".tmp" + std::to_string(::getpid());
+  const std::string src = stem + ".cpp", out = stem + ".so", log = stem + ".log";
+  {
+    std::ofstream f(src);
+    f << source;
+    if (!f) throw std::runtime_error("specialize: cannot write " + src);
+  }
+  const std::string cmd = quoted(compiler, "compiler") + " -std=c++17 " + flags + " -fPIC -shared -fvisibility=hidden -I" +
+                          quoted(include_dir.string(), "include folder") + " -o " + quoted(out, "cache folder") +
+                          " " + quoted(src, "cache folder") + " > " + quoted(log, "cache folder") + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  const std::string output = read_file(log);
+  std::error_code ec;
+  fs::remove(src, ec);
+  fs::remove(log, ec);
+  if (status != 0) {
+    fs::remove(out, ec);
+    // the shell's 127: the command was not found
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
+      throw std::runtime_error("specialize: no C++ compiler: '" + compiler +
+                               "' was not found (set CXX, or SpecializeOptions::compiler)");
+    throw std::runtime_error("specialize: '" + compiler + "' failed to compile the instance:\n" + head(output, 12));
+  }
+  fs::rename(out, library);
+}
+
+std::shared_ptr<Instance> open_instance(const fs::path& library) {
+  auto inst = std::make_shared<Instance>();
+  inst->path = library.string();
+  inst->library = dlopen(inst->path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!inst->library) throw std::runtime_error(std::string("specialize: cannot load ") + inst->path + ": " + dlerror());
+  using AbiFn = int (*)();
+  using EntriesFn = int (*)(const instance::Entry**);
+  auto abi = reinterpret_cast<AbiFn>(dlsym(inst->library, "rbdkit_instance_abi"));
+  auto entries = reinterpret_cast<EntriesFn>(dlsym(inst->library, "rbdkit_instance_entries"));
+  if (!abi || !entries || abi() != instance::kAbi)
+    throw std::runtime_error("specialize: " + inst->path + " is not an rbdkit instance of ABI " +
+                             std::to_string(instance::kAbi));
+  inst->kernels.assign(ops::op_table().size(), nullptr);
+  const instance::Entry* e = nullptr;
+  const int n = entries(&e);
+  for (int i = 0; i < n; ++i) {
+    const int op = ops::find_op(e[i].name);
+    if (op < 0) throw std::runtime_error("specialize: " + inst->path + " has an unknown operation " + e[i].name);
+    inst->kernels[op] = e[i].run;
+  }
+  return inst;
+}
+
+}  // namespace
+
+std::string instance_source(const Model& model) {
+  return generate_header(model, kStructName, "a compiled instance (Handle::specialize)") +
+         "\n#include \"rbdkit/codegen/instance.hpp\"\n\nRBDKIT_INSTANCE(rbdkit_generated::" + kStructName + ")\n";
+}
+
+std::shared_ptr<const Instance> load_instance(const Model& model, const SpecializeOptions& options) {
+  if (model.nb() == 0) throw std::runtime_error("specialize: the model has no moving body");
+  const std::string compiler = !options.compiler.empty() ? options.compiler
+                               : !env("CXX").empty()      ? env("CXX")
+                                                          : "c++";
+  const fs::path include_dir = options.include_dir.empty() ? fs::path(RBDKIT_SOURCE_INCLUDE_DIR)
+                                                           : fs::path(options.include_dir);
+  if (include_dir.empty() || !fs::is_regular_file(include_dir / "rbdkit" / "codegen" / "instance.hpp"))
+    throw std::runtime_error("specialize: rbdkit's headers are not in '" + include_dir.string() +
+                             "' (SpecializeOptions::include_dir: the folder holding rbdkit/)");
+  const std::string source = instance_source(model);
+  const std::string key = cache_key(source, compiler, options.flags, include_dir);
+  std::string stem;  // the robot's name as a file name
+  for (char c : model.name) stem += std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' ? c : '_';
+  const fs::path library = cache_folder(options) / ((stem.empty() ? "robot" : stem.substr(0, 40)) + "-" + key + ".so");
+
+  // one load per library and process: handles on the same model share it
+  static std::mutex lock;
+  static std::map<std::string, std::weak_ptr<Instance>> loaded;
+  std::lock_guard<std::mutex> lk(lock);
+  if (auto inst = loaded[library.string()].lock()) return inst;
+  if (!fs::is_regular_file(library)) compile(source, compiler, options.flags, include_dir, library);
+  auto inst = open_instance(library);
+  loaded[library.string()] = inst;
+  return inst;
+}
+
+ops::Kernel<double> instance_kernel(const Instance& instance, int op) {
+  return op >= 0 && op < static_cast<int>(instance.kernels.size()) ? instance.kernels[op] : nullptr;
+}
+
+const std::string& instance_path(const Instance& instance) { return instance.path; }
+
+}  // namespace rbd

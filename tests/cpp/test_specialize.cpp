@@ -1,0 +1,143 @@
+// Handle::specialize: the compiled per-robot instance (codegen/specialize.hpp)
+// gives what the generic kernels give, for every operation it has, on a serial
+// arm, a floating quadruped and a model with mimic joints; the cache is reused;
+// a missing or failing compiler and a CUDA handle fall back with a message.
+// The instances are compiled into $RBDKIT_CACHE_DIR (./test.sh: build/instances),
+// else a folder under the test's temporary directory.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "rbdkit/codegen/instance.hpp"
+#include "registry_helpers.hpp"
+#include "test_models.hpp"
+
+using rbd::Handle;
+using rbd::Model;
+
+namespace {
+
+rbd::SpecializeOptions test_options() {
+  rbd::SpecializeOptions o;
+  const char* dir = std::getenv("RBDKIT_CACHE_DIR");
+  o.cache_dir = dir && *dir ? dir : ::testing::TempDir() + "rbdkit-instances";
+  return o;
+}
+
+struct Robot {
+  const char* file;
+  bool floating;
+};
+
+}  // namespace
+
+class SpecializeModels : public ::testing::TestWithParam<Robot> {};
+
+// every operation of the instance, f_ext given where it is taken, against the generic handle's
+TEST_P(SpecializeModels, EveryKernelAgreesWithTheGenericOne) {
+  const Model m = Model::from_urdf_file(GetParam().file, GetParam().floating);
+  Handle generic(m), spec(m);
+  ASSERT_TRUE(spec.specialize(test_options())) << spec.specialize_error();
+  EXPECT_TRUE(spec.specialized());
+  EXPECT_TRUE(std::filesystem::is_regular_file(spec.instance_library()));
+  EXPECT_FALSE(generic.specialized());
+  for (const char* name : rbd::instance::InstanceOps::names) {
+    const int id = rbd::ops::find_op(name);
+    ASSERT_GE(id, 0) << name;
+    const rbd::ops::OpSpec& op = *rbd::ops::op_table()[id].spec;
+    for (const bool with_fext : {false, true}) {
+      // B = 3 on a handle without threads: the serial loop, so the instance, for every sample
+      const rbd_test::Inputs in = rbd_test::make_inputs(m, op, 3, 17u + id, with_fext);
+      const std::vector<double> want = rbd_test::run<double>(generic, id, in);
+      const std::vector<double> got = rbd_test::run<double>(spec, id, in);
+      ASSERT_EQ(got.size(), want.size());
+      EXPECT_LT(rbd_test::max_rel_err(got, want), 1e-12) << op.name << (with_fext ? " with f_ext" : "");
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Robots, SpecializeModels,
+                         ::testing::Values(Robot{RBDKIT_ROBOTS_DIR "/iiwa.urdf", false},
+                                           Robot{RBDKIT_ROBOTS_DIR "/hyq.urdf", true},
+                                           Robot{RBDKIT_TEST_URDF_DIR "/mimic.urdf", false}),
+                         [](const ::testing::TestParamInfo<Robot>& info) {
+                           std::string p = info.param.file;
+                           p = p.substr(p.find_last_of('/') + 1);
+                           return p.substr(0, p.find('.')) + (info.param.floating ? "_floating" : "_fixed");
+                         });
+
+// a second handle on the same model loads the cached library; another model has its own
+TEST(Specialize, TheCacheIsKeyedByTheModel) {
+  const Model iiwa = Model::from_urdf_file(RBDKIT_ROBOTS_DIR "/iiwa.urdf");
+  Handle a(iiwa), b(iiwa), c(Model::from_urdf_file(RBDKIT_ROBOTS_DIR "/hyq.urdf", true));
+  ASSERT_TRUE(a.specialize(test_options())) << a.specialize_error();
+  ASSERT_TRUE(b.specialize(test_options())) << b.specialize_error();
+  ASSERT_TRUE(c.specialize(test_options())) << c.specialize_error();
+  EXPECT_EQ(a.instance_library(), b.instance_library());
+  EXPECT_NE(a.instance_library(), c.instance_library());
+  // another model of the same robot (a changed inertia) is another instance
+  Model heavier = iiwa;
+  heavier.bodies[2].I.m *= 2;
+  Handle d(heavier);
+  ASSERT_TRUE(d.specialize(test_options())) << d.specialize_error();
+  EXPECT_NE(d.instance_library(), a.instance_library());
+  // an instance's kernel computes the robot it was compiled for, whatever view it is passed: the
+  // heavier arm's M from iiwa's view and workspace
+  const auto heavy = rbd::load_instance(heavier, test_options());
+  const int id = rbd::ops::find_op("crba");
+  const rbd_test::Inputs in = rbd_test::make_inputs(iiwa, *rbd::ops::op_table()[id].spec, 1, 5, false);
+  rbd::WorkspaceBuffer buf(iiwa);
+  std::vector<double> M(iiwa.nv * iiwa.nv);
+  rbd::ops::OpArgs<double> args{};
+  args.in[0] = in.arrays[0].data();
+  args.out[0] = M.data();
+  ASSERT_TRUE(rbd::instance_kernel(*heavy, id)(iiwa.view(), buf.get(), args));
+  Handle generic_heavy(heavier), generic_iiwa(iiwa);
+  EXPECT_LT(rbd_test::max_rel_err(M, rbd_test::run<double>(generic_heavy, id, in)), 1e-12);
+  EXPECT_GT(rbd_test::max_rel_err(M, rbd_test::run<double>(generic_iiwa, id, in)), 1e-3);
+  EXPECT_EQ(rbd::instance_kernel(*heavy, rbd::ops::find_op("com")), nullptr);  // not an instance's operation
+  // and a handle runs its instance's kernels: with the heavier arm's library put in the cache where
+  // iiwa's belongs, an iiwa handle computes the heavier arm's M
+  rbd::SpecializeOptions swapped = test_options();
+  swapped.cache_dir += "-swapped";
+  std::filesystem::remove_all(swapped.cache_dir);
+  std::filesystem::create_directories(swapped.cache_dir);
+  std::filesystem::copy_file(d.instance_library(), std::filesystem::path(swapped.cache_dir) /
+                                                       std::filesystem::path(a.instance_library()).filename());
+  Handle e(iiwa);
+  ASSERT_TRUE(e.specialize(swapped)) << e.specialize_error();
+  EXPECT_LT(rbd_test::max_rel_err(rbd_test::run<double>(e, id, in), M), 1e-12);
+}
+
+// no compiler, a compiler that fails, a CUDA handle: false, a message, and the generic kernels still run
+TEST(Specialize, FallsBackWithAReason) {
+  const Model m = Model::from_urdf_file(RBDKIT_ROBOTS_DIR "/iiwa.urdf");
+  rbd::SpecializeOptions o = test_options();
+  o.cache_dir += "-fallback";
+  std::filesystem::remove_all(o.cache_dir);
+  Handle h(m);
+  o.compiler = "/nonexistent/c++";
+  EXPECT_FALSE(h.specialize(o));
+  EXPECT_FALSE(h.specialized());
+  EXPECT_NE(h.specialize_error().find("no C++ compiler"), std::string::npos) << h.specialize_error();
+  o.compiler = "false";  // runs, and fails
+  EXPECT_FALSE(h.specialize(o));
+  EXPECT_NE(h.specialize_error().find("failed to compile"), std::string::npos) << h.specialize_error();
+  o.compiler = "";
+  o.include_dir = "/nonexistent";
+  EXPECT_FALSE(h.specialize(o));
+  EXPECT_NE(h.specialize_error().find("rbdkit's headers are not in"), std::string::npos) << h.specialize_error();
+  {  // a CUDA handle (interpret mode here) keeps the CUDA backend's kernels
+    setenv("RBDKIT_CUDA_INTERPRET", "1", 1);
+    Handle cuda(m, {}, rbd::Backend::CUDA);
+    unsetenv("RBDKIT_CUDA_INTERPRET");
+    EXPECT_FALSE(cuda.specialize(test_options()));
+    EXPECT_NE(cuda.specialize_error().find("backend='cuda'"), std::string::npos) << cuda.specialize_error();
+  }
+  // the handle still computes, with the generic kernels
+  const int id = rbd::ops::find_op("crba");
+  const rbd_test::Inputs in = rbd_test::make_inputs(m, *rbd::ops::op_table()[id].spec, 2, 3, false);
+  Handle ref(m);
+  EXPECT_EQ(rbd_test::run<double>(h, id, in), rbd_test::run<double>(ref, id, in));
+}
