@@ -188,32 +188,25 @@ ffi::Error run_op_cuda(CudaStream stream, int32_t device_ordinal, ffi::Remaining
   return run_op(args, rets, h, op_id, slots, outputs, reals, choices, ee, true);
 }
 
+// the attributes both handlers take (header comment), after a handler's own context
+template <class Binding> auto call_binding(Binding b) {
+  return std::move(b)
+      .RemainingArgs()
+      .RemainingRets()
+      .template Attr<int64_t>("handle")
+      .template Attr<int64_t>("op")
+      .template Attr<ffi::Span<const int64_t>>("slots")
+      .template Attr<ffi::Span<const int64_t>>("outputs")
+      .template Attr<ffi::Span<const double>>("reals")
+      .template Attr<ffi::Span<const int64_t>>("choices")
+      .template Attr<ffi::Span<const int64_t>>("ee");
+}
+
 }  // namespace
 
-XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op_cpu,
-                              ffi::Ffi::Bind()
-                                  .RemainingArgs()
-                                  .RemainingRets()
-                                  .Attr<int64_t>("handle")
-                                  .Attr<int64_t>("op")
-                                  .Attr<ffi::Span<const int64_t>>("slots")
-                                  .Attr<ffi::Span<const int64_t>>("outputs")
-                                  .Attr<ffi::Span<const double>>("reals")
-                                  .Attr<ffi::Span<const int64_t>>("choices")
-                                  .Attr<ffi::Span<const int64_t>>("ee"));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cpu, run_op_cpu, call_binding(ffi::Ffi::Bind()));
 XLA_FFI_DEFINE_HANDLER_SYMBOL(rbdkit_jax_op_cuda, run_op_cuda,
-                              ffi::Ffi::Bind()
-                                  .Ctx<ffi::PlatformStream<CudaStream>>()
-                                  .Ctx<ffi::DeviceOrdinal>()
-                                  .RemainingArgs()
-                                  .RemainingRets()
-                                  .Attr<int64_t>("handle")
-                                  .Attr<int64_t>("op")
-                                  .Attr<ffi::Span<const int64_t>>("slots")
-                                  .Attr<ffi::Span<const int64_t>>("outputs")
-                                  .Attr<ffi::Span<const double>>("reals")
-                                  .Attr<ffi::Span<const int64_t>>("choices")
-                                  .Attr<ffi::Span<const int64_t>>("ee"));
+                              call_binding(ffi::Ffi::Bind().Ctx<ffi::PlatformStream<CudaStream>>().Ctx<ffi::DeviceOrdinal>()));
 #endif
 
 namespace nb = nanobind;
