@@ -35,9 +35,10 @@ else c++) into a shared library cached per model, compiler, flags and
 rbdkit's headers ($RBDKIT_CACHE_DIR, else ~/.cache/rbdkit: the first handle
 of a robot takes seconds, later ones load the library) and loads it: float64
 single-sample calls of the dynamics, M, M⁻¹, their first derivatives and the
-step then run its per-robot kernels, with the same results (batches stay on
-the batch engine). Without a compiler (or on backend="cuda") it warns once
-and keeps the generic kernels; `specialized` says which is in use
+step then run its per-robot kernels, with the same results to rounding
+(batches stay on the batch engine). Without a compiler (or on backend="cuda") it warns once
+and keeps the generic kernels (so does a float32 handle, which computes on the
+engine); `specialized` says which is in use
 (docs/generated-code.md).
 """
 

@@ -76,8 +76,8 @@ current when it was made (device 0 unless changed); arrays on another GPU
 are an error that says so. Arrays on JAX's CPU platform, given to a cuda
 handle, are copied to its device and back. backend=None (the default)
 chooses "cuda" when JAX's default backend is a GPU and this rbdkit build has
-the real kernels, else "cpu"; a cpu handle given GPU arrays raises an
-error that names backend="cuda".
+the real kernels, else "cpu". In such a build, a cpu handle (or one in
+interpret mode) given GPU arrays raises an error that says what it needs.
 
 Floating bases and spherical joints (quaternion coordinates). rbdkit's
 derivatives live in the tangent space: δq is a velocity-like vector of nv

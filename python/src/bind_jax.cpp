@@ -176,16 +176,24 @@ ffi::Error run_op_cuda(CudaStream stream, int32_t device_ordinal, ffi::Remaining
         "rbdkit.jax: the arrays are on a GPU, and this handle runs on the CPU: make it with "
         "rbdkit.jax.Handle(model, backend='cuda'), or put the arrays on the CPU (jax.device_put(x, "
         "jax.devices('cpu')[0]))");
+  if (h->cuda()->interpret())
+    return ffi::Error::InvalidArgument(
+        "rbdkit.jax: the arrays are on a GPU, and this backend='cuda' handle runs in interpret mode "
+        "(RBDKIT_CUDA_INTERPRET=1: the kernels on the CPU, which take host arrays): make it without "
+        "RBDKIT_CUDA_INTERPRET, or put the arrays on the CPU");
   if (device_ordinal != h->cuda()->device_ordinal())
     return ffi::Error::InvalidArgument("rbdkit.jax: the arrays are on GPU " + std::to_string(device_ordinal) +
                                        ", and the handle's CUDA engine on GPU " +
                                        std::to_string(h->cuda()->device_ordinal()) +
                                        ": a backend='cuda' handle runs on the device that was current when it was made");
-  // the stream is the engine's for the length of the call (calls on one engine serialise)
+  // XLA's stream is the engine's for the length of the call, then the engine's own again
   static std::mutex stream_lock;
   std::lock_guard<std::mutex> lk(stream_lock);
+  void* const before = h->cuda()->stream();
   h->cuda()->set_stream(stream);
-  return run_op(args, rets, h, op_id, slots, outputs, reals, choices, ee, true);
+  ffi::Error e = run_op(args, rets, h, op_id, slots, outputs, reals, choices, ee, true);
+  h->cuda()->set_stream(before);
+  return e;
 }
 
 // the attributes both handlers take (header comment), after a handler's own context

@@ -3,6 +3,7 @@
 #include "rbdkit/codegen/specialize.hpp"
 
 #include <dlfcn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -70,11 +71,31 @@ std::string read_file(const fs::path& p) {
   return s.str();
 }
 
-// a path for the shell, in single quotes (a path with a quote in it is refused)
+// a word for the shell, in single quotes (one with a quote in it is refused)
 std::string quoted(const std::string& s, const char* what) {
   if (s.find('\'') != std::string::npos)
     throw std::runtime_error(std::string("specialize: the ") + what + " '" + s + "' contains a quote");
   return "'" + s + "'";
+}
+
+// the compiler command ("ccache g++" is two words), each word quoted
+std::string compiler_command(const std::string& compiler) {
+  std::istringstream words(compiler);
+  std::string w, out;
+  while (words >> w) out += (out.empty() ? "" : " ") + quoted(w, "compiler");
+  if (out.empty()) throw std::runtime_error("specialize: the compiler is empty");
+  return out;
+}
+
+// what a shell command prints (stdout and stderr), "" if it cannot run
+std::string output_of(const std::string& cmd) {
+  std::string out;
+  if (FILE* p = popen((cmd + " 2>&1").c_str(), "r")) {
+    char b[512];
+    for (size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) out.append(b, n);
+    pclose(p);
+  }
+  return out;
 }
 
 fs::path cache_folder(const SpecializeOptions& o) {
@@ -82,18 +103,31 @@ fs::path cache_folder(const SpecializeOptions& o) {
   if (!env("RBDKIT_CACHE_DIR").empty()) return env("RBDKIT_CACHE_DIR");
   if (!env("XDG_CACHE_HOME").empty()) return fs::path(env("XDG_CACHE_HOME")) / "rbdkit";
   if (!env("HOME").empty()) return fs::path(env("HOME")) / ".cache" / "rbdkit";
-  return fs::temp_directory_path() / "rbdkit-cache";
+  return fs::temp_directory_path() / ("rbdkit-cache-" + std::to_string(::geteuid()));  // (a folder per user)
 }
 
-// the key: the instance ABI, the source, the compiler and its flags, and every rbdkit header (the
-// source includes most of them, and a changed one changes what the library computes)
+// the compile command's fixed options (the key hashes them with the rest)
+constexpr const char* kFixedFlags = "-std=c++17 -fPIC -shared -fvisibility=hidden";
+
+// the key: the instance ABI, the source (so every constant of the model), the compiler's command and
+// version, the flags, the CPU's features (for -march=native) and every rbdkit header (the source
+// includes most of them, and a changed one changes what the library computes)
 std::string cache_key(const std::string& source, const std::string& compiler, const std::string& flags,
                       const fs::path& include_dir) {
   Hash h;
   h.add(std::to_string(instance::kAbi));
   h.add(source);
   h.add(compiler);
+  h.add(output_of(compiler_command(compiler) + " --version"));
   h.add(flags);
+  h.add(kFixedFlags);
+  {  // the CPU's model and flags (Linux), which -march=native resolves to
+    std::ifstream cpu("/proc/cpuinfo");
+    std::string line;
+    int found = 0;
+    while (found < 2 && std::getline(cpu, line))
+      if (line.rfind("model name", 0) == 0 || line.rfind("flags", 0) == 0) h.add(line), ++found;
+  }
   std::vector<fs::path> headers;
   for (const auto& e : fs::recursive_directory_iterator(include_dir / "rbdkit"))
     if (e.is_regular_file()) headers.push_back(e.path());
@@ -116,7 +150,8 @@ std::string head(const std::string& text, int lines) {
 // that a concurrent process never loads half a library)
 void compile(const std::string& source, const std::string& compiler, const std::string& flags,
              const fs::path& include_dir, const fs::path& library) {
-  fs::create_directories(library.parent_path());
+  if (fs::create_directories(library.parent_path()))
+    ::chmod(library.parent_path().c_str(), 0700);  // (a folder made here: this user's alone)
   const std::string stem = library.string() + ".tmp" + std::to_string(::getpid());
   const std::string src = stem + ".cpp", out = stem + ".so", log = stem + ".log";
   {
@@ -124,7 +159,7 @@ void compile(const std::string& source, const std::string& compiler, const std::
     f << source;
     if (!f) throw std::runtime_error("specialize: cannot write " + src);
   }
-  const std::string cmd = quoted(compiler, "compiler") + " -std=c++17 " + flags + " -fPIC -shared -fvisibility=hidden -I" +
+  const std::string cmd = compiler_command(compiler) + " " + kFixedFlags + " " + flags + " -I" +
                           quoted(include_dir.string(), "include folder") + " -o " + quoted(out, "cache folder") +
                           " " + quoted(src, "cache folder") + " > " + quoted(log, "cache folder") + " 2>&1";
   const int status = std::system(cmd.c_str());
@@ -140,28 +175,45 @@ void compile(const std::string& source, const std::string& compiler, const std::
                                "' was not found (set CXX, or SpecializeOptions::compiler)");
     throw std::runtime_error("specialize: '" + compiler + "' failed to compile the instance:\n" + head(output, 12));
   }
+  ::chmod(out.c_str(), 0755);  // (writable by this user alone, whatever the umask: open_instance checks it)
   fs::rename(out, library);
 }
 
-std::shared_ptr<Instance> open_instance(const fs::path& library) {
+// a file this user owns and nobody else may write, in a folder this user owns that not everyone may
+// write (loading code that another user can replace would run their code here)
+void check_private(const fs::path& p, mode_t not_writable_by) {
+  struct stat st;
+  if (::stat(p.c_str(), &st) != 0) throw std::runtime_error("specialize: cannot read " + p.string());
+  if (st.st_uid != ::geteuid() || (st.st_mode & not_writable_by))
+    throw std::runtime_error("specialize: " + p.string() +
+                             " is not this user's (owned by another user, or writable by others): not loaded");
+}
+
+// the library's instance for `model`, checked: ABI, the types' layout, the robot's sizes
+std::shared_ptr<Instance> open_instance(const fs::path& library, const Model& model) {
+  check_private(library.parent_path(), S_IWOTH);
+  check_private(library, S_IWGRP | S_IWOTH);
   auto inst = std::make_shared<Instance>();
   inst->path = library.string();
   inst->library = dlopen(inst->path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!inst->library) throw std::runtime_error(std::string("specialize: cannot load ") + inst->path + ": " + dlerror());
-  using AbiFn = int (*)();
-  using EntriesFn = int (*)(const instance::Entry**);
-  auto abi = reinterpret_cast<AbiFn>(dlsym(inst->library, "rbdkit_instance_abi"));
-  auto entries = reinterpret_cast<EntriesFn>(dlsym(inst->library, "rbdkit_instance_entries"));
-  if (!abi || !entries || abi() != instance::kAbi)
+  using DescribeFn = const instance::Description* (*)();
+  auto describe = reinterpret_cast<DescribeFn>(dlsym(inst->library, "rbdkit_instance"));
+  const instance::Description* d = describe ? describe() : nullptr;
+  if (!d || d->abi != instance::kAbi)
     throw std::runtime_error("specialize: " + inst->path + " is not an rbdkit instance of ABI " +
                              std::to_string(instance::kAbi));
+  if (d->layout != instance::kLayout)
+    throw std::runtime_error("specialize: " + inst->path + " was compiled with other rbdkit headers than this library's");
+  if (d->nb != model.nb() || d->nq != model.nq || d->nv != model.nv)
+    throw std::runtime_error("specialize: " + inst->path + " is another robot's (nb, nq, nv = " + std::to_string(d->nb) +
+                             ", " + std::to_string(d->nq) + ", " + std::to_string(d->nv) + ")");
   inst->kernels.assign(ops::op_table().size(), nullptr);
-  const instance::Entry* e = nullptr;
-  const int n = entries(&e);
-  for (int i = 0; i < n; ++i) {
-    const int op = ops::find_op(e[i].name);
-    if (op < 0) throw std::runtime_error("specialize: " + inst->path + " has an unknown operation " + e[i].name);
-    inst->kernels[op] = e[i].run;
+  for (int i = 0; i < d->n_entries; ++i) {
+    const int op = ops::find_op(d->entries[i].name);
+    if (op < 0)
+      throw std::runtime_error("specialize: " + inst->path + " has an unknown operation " + d->entries[i].name);
+    inst->kernels[op] = d->entries[i].run;
   }
   return inst;
 }
@@ -195,7 +247,7 @@ std::shared_ptr<const Instance> load_instance(const Model& model, const Speciali
   std::lock_guard<std::mutex> lk(lock);
   if (auto inst = loaded[library.string()].lock()) return inst;
   if (!fs::is_regular_file(library)) compile(source, compiler, options.flags, include_dir, library);
-  auto inst = open_instance(library);
+  auto inst = open_instance(library, model);
   loaded[library.string()] = inst;
   return inst;
 }

@@ -208,9 +208,12 @@ void Handle::check(int op, const ops::OpCall& call, bool values) const {
 
 bool Handle::specialize(const SpecializeOptions& options) {
   std::lock_guard<std::mutex> lk(run_);  // (the serial loop reads instance_ under it)
-  if (cuda_) {
-    specialize_error_ = "specialize: a backend='cuda' handle runs the CUDA backend's kernels; an instance serves the "
-                        "CPU's serial loop";
+  if (cuda_ || dtype_ == "float32") {
+    specialize_error_ = cuda_ ? "specialize: a backend='cuda' handle runs the CUDA backend's kernels; an instance serves "
+                                "the CPU's float64 serial loop"
+                              : "specialize: a float32 handle runs every call on the batch engine; an instance serves "
+                                "the CPU's float64 serial loop";
+    instance_.reset();
     return false;
   }
   try {

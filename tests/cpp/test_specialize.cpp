@@ -1,7 +1,9 @@
 // Handle::specialize: the compiled per-robot instance (codegen/specialize.hpp)
 // gives what the generic kernels give, for every operation it has, on a serial
-// arm, a floating quadruped and a model with mimic joints; the cache is reused;
-// a missing or failing compiler and a CUDA handle fall back with a message.
+// arm, a floating quadruped and a model with mimic joints; a handle runs the
+// instance's kernels; the cache is keyed by the model and a library of another
+// robot, or one that others may write, is refused; a missing or failing
+// compiler, a float32 and a CUDA handle fall back with a message.
 // The instances are compiled into $RBDKIT_CACHE_DIR (./test.sh: build/instances),
 // else a folder under the test's temporary directory.
 #include <gtest/gtest.h>
@@ -108,6 +110,25 @@ TEST(Specialize, TheCacheIsKeyedByTheModel) {
   Handle e(iiwa);
   ASSERT_TRUE(e.specialize(swapped)) << e.specialize_error();
   EXPECT_LT(rbd_test::max_rel_err(rbd_test::run<double>(e, id, in), M), 1e-12);
+  // a library of other sizes (HyQ's) in that place is refused, and so is one that others may write
+  const auto iiwa_so = std::filesystem::path(swapped.cache_dir) / std::filesystem::path(a.instance_library()).filename();
+  rbd::SpecializeOptions other = swapped;
+  other.cache_dir += "-other";
+  std::filesystem::remove_all(other.cache_dir);
+  std::filesystem::create_directories(other.cache_dir);
+  std::filesystem::copy_file(c.instance_library(), std::filesystem::path(other.cache_dir) / iiwa_so.filename());
+  Handle f(iiwa);
+  EXPECT_FALSE(f.specialize(other));
+  EXPECT_NE(f.specialize_error().find("another robot's"), std::string::npos) << f.specialize_error();
+  rbd::SpecializeOptions shared = swapped;
+  shared.cache_dir += "-shared";
+  std::filesystem::remove_all(shared.cache_dir);
+  std::filesystem::create_directories(shared.cache_dir);
+  const auto shared_so = std::filesystem::path(shared.cache_dir) / iiwa_so.filename();
+  std::filesystem::copy_file(a.instance_library(), shared_so);
+  std::filesystem::permissions(shared_so, std::filesystem::perms::group_write, std::filesystem::perm_options::add);
+  EXPECT_FALSE(f.specialize(shared));
+  EXPECT_NE(f.specialize_error().find("is not this user's"), std::string::npos) << f.specialize_error();
 }
 
 // no compiler, a compiler that fails, a CUDA handle: false, a message, and the generic kernels still run
@@ -128,6 +149,14 @@ TEST(Specialize, FallsBackWithAReason) {
   o.include_dir = "/nonexistent";
   EXPECT_FALSE(h.specialize(o));
   EXPECT_NE(h.specialize_error().find("rbdkit's headers are not in"), std::string::npos) << h.specialize_error();
+  o.include_dir = "";
+  o.compiler = "env c++";  // a compiler command of several words
+  EXPECT_TRUE(h.specialize(o)) << h.specialize_error();
+  {  // a float32 handle computes on the engine
+    Handle f32(m, {}, 1, "float32");
+    EXPECT_FALSE(f32.specialize(test_options()));
+    EXPECT_NE(f32.specialize_error().find("float32"), std::string::npos) << f32.specialize_error();
+  }
   {  // a CUDA handle (interpret mode here) keeps the CUDA backend's kernels
     setenv("RBDKIT_CUDA_INTERPRET", "1", 1);
     Handle cuda(m, {}, rbd::Backend::CUDA);
@@ -135,9 +164,12 @@ TEST(Specialize, FallsBackWithAReason) {
     EXPECT_FALSE(cuda.specialize(test_options()));
     EXPECT_NE(cuda.specialize_error().find("backend='cuda'"), std::string::npos) << cuda.specialize_error();
   }
-  // the handle still computes, with the generic kernels
+  // a handle whose specialize() failed computes with the generic kernels
+  Handle g(m);
+  o.compiler = "false";
+  EXPECT_FALSE(g.specialize(o));
   const int id = rbd::ops::find_op("crba");
   const rbd_test::Inputs in = rbd_test::make_inputs(m, *rbd::ops::op_table()[id].spec, 2, 3, false);
   Handle ref(m);
-  EXPECT_EQ(rbd_test::run<double>(h, id, in), rbd_test::run<double>(ref, id, in));
+  EXPECT_EQ(rbd_test::run<double>(g, id, in), rbd_test::run<double>(ref, id, in));
 }

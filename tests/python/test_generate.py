@@ -333,3 +333,6 @@ def test_specialize_falls_back_with_a_warning(monkeypatch, tmp_path):
         assert not rbdkit.Handle(model, specialize=True).specialized
     with pytest.raises(TypeError, match="specialize: expected True or False"):
         rbdkit.Handle(model, specialize="yes")
+    # a float32 handle computes every call on the batch engine: it says so
+    with pytest.warns(RuntimeWarning, match="float32 handle runs every call on the batch engine"):
+        assert not rbdkit.Handle(model, dtype="float32", specialize=True).specialized

@@ -4,8 +4,11 @@
 //
 //   RBDKIT_INSTANCE(rbdkit_generated::Robot)
 //
-// which defines two C functions the loader looks up: the instance ABI, and
-// the table of (registered operation's name, per-sample kernel). Each kernel
+// which defines the C function the loader looks up, rbdkit_instance(): the
+// instance ABI, a fingerprint of the types the library and the instance pass
+// each other, the robot's sizes and the table of (registered operation's
+// name, per-sample kernel). The loader refuses an instance whose ABI,
+// fingerprint or sizes differ from its own and its model's. Each kernel
 // is the registry's own Op::run on the robot's bodies as literals (the
 // generated struct's bodies<double>): the workspace and the arrays are the
 // caller's, as the serial loop (ops::run_serial) passes them; the model view
@@ -18,8 +21,8 @@
 namespace rbd {
 namespace instance {
 
-// changes whenever the entry points' types or meaning change (a key of the cache, checked on load)
-constexpr int kAbi = 1;
+// changes whenever the entry point's types or meaning change (a key of the cache, checked on load)
+constexpr int kAbi = 2;
 
 struct Entry {
   const char* name;  // the registered operation's name (ops::OpSpec::name)
@@ -46,16 +49,51 @@ using InstanceOps = Ops<ops::InverseDynamics, ops::NonlinearEffects, ops::Genera
                         ops::Aba, ops::ForwardDynamics, ops::InverseDynamicsGradient, ops::ForwardDynamicsGradient,
                         ops::Integrator, ops::IntegratorGradient>;
 
+// FNV-1a steps over integers and names: the fingerprint below
+constexpr unsigned long long mix(unsigned long long h, unsigned long long v) {
+  for (int i = 0; i < 8; ++i) h = (h ^ ((v >> (8 * i)) & 0xff)) * 1099511628211ull;
+  return h;
+}
+constexpr unsigned long long mix(unsigned long long h, const char* s) {
+  while (*s) h = mix(h, static_cast<unsigned char>(*s++));
+  return mix(h, 0xffu);
+}
+template <class Op> constexpr unsigned long long mix_op(unsigned long long h) {
+  h = mix(mix(mix(h, Op::spec.name), static_cast<unsigned>(Op::spec.n_args)), static_cast<unsigned>(Op::spec.n_out));
+  for (int k = 0; k < Op::spec.n_args; ++k) h = mix(h, static_cast<unsigned>(Op::spec.args[k].kind));
+  return h;
+}
+template <class... Op> constexpr unsigned long long fingerprint(Ops<Op...>*) {
+  unsigned long long h = 1469598103934665603ull;
+  h = mix(mix(mix(mix(h, sizeof(Workspace<double>)), sizeof(ops::OpArgs<double>)), sizeof(BodyDesc<double>)),
+          sizeof(ModelView<double>));
+  h = mix(mix(h, static_cast<unsigned>(ops::kMaxArgs)), static_cast<unsigned>(ops::kMaxOutputs));
+  ((h = mix_op<Op>(h)), ...);
+  return h;
+}
+// the types an instance and the library pass each other, and the operations' argument layouts, as
+// compiled on each side: equal or the instance is refused (headers of another rbdkit)
+constexpr unsigned long long kLayout = fingerprint(static_cast<InstanceOps*>(nullptr));
+
+// what rbdkit_instance() returns (abi first: the loader reads it before the rest)
+struct Description {
+  int abi;                      // kAbi
+  unsigned long long layout;    // kLayout
+  int nb, nq, nv;               // the robot's
+  int n_entries;
+  const Entry* entries;
+};
+
 }  // namespace instance
 }  // namespace rbd
 
-// the instance's C entry points for the generated struct R
-// (compiled with -fvisibility=hidden: these two are the library's only exported symbols, so that its
-// inline functions never bind to another copy in the process)
-#define RBDKIT_INSTANCE(R)                                                                                   \
-  extern "C" __attribute__((visibility("default"))) int rbdkit_instance_abi() { return rbd::instance::kAbi; } \
-  extern "C" __attribute__((visibility("default"))) int rbdkit_instance_entries(                             \
-      const rbd::instance::Entry** entries) {                                                                 \
-    *entries = rbd::instance::InstanceOps::entries<R>;                                                       \
-    return static_cast<int>(sizeof(rbd::instance::InstanceOps::names) / sizeof(const char*));               \
+// the instance's C entry point for the generated struct R (compiled with -fvisibility=hidden: the
+// library's only exported symbol, so that its inline functions never bind to another copy in the process)
+#define RBDKIT_INSTANCE(R)                                                                                  \
+  extern "C" __attribute__((visibility("default"))) const rbd::instance::Description* rbdkit_instance() {   \
+    static constexpr rbd::instance::Description d = {                                                       \
+        rbd::instance::kAbi, rbd::instance::kLayout, R::nb, R::nq, R::nv,                                   \
+        static_cast<int>(sizeof(rbd::instance::InstanceOps::names) / sizeof(const char*)),                  \
+        rbd::instance::InstanceOps::entries<R>};                                                            \
+    return &d;                                                                                              \
   }
