@@ -596,9 +596,14 @@ def test_cuda_arrays_on_the_device(monkeypatch):
     x = step(gq.reshape(8, 8, -1), gqd.reshape(8, 8, -1), gu.reshape(8, 8, -1))
     np.testing.assert_allclose(np.asarray(x).reshape(64, -1), h.numpy.integrator(q, qd, u, 0.01, "rk4"),
                                rtol=1e-9, atol=1e-9)
-    # a CPU handle's call on GPU arrays names the backend it needs
+    # a CPU handle's call on GPU arrays names the backend it needs; an interpret-mode one says it takes
+    # host arrays
     with pytest.raises(Exception, match="backend='cuda'"):
         jax.block_until_ready(jax.jit(h.crba)(gq))
+    monkeypatch.setenv("RBDKIT_CUDA_INTERPRET", "1")
+    hi = rj.Handle(model, backend="cuda")
+    with pytest.raises(Exception, match="interpret mode"):
+        jax.block_until_ready(jax.jit(hi.crba)(gq))
 
 
 def test_frameworks_benchmark_runs(tmp_path):
