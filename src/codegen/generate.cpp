@@ -143,7 +143,8 @@ std::string generate_header(const Model& model, const std::string& name, const s
               "  // about the body origin: rbdkit.Model.inertial_parameters' layout; no consistency check here)\n"
               "  template <class S> RBD_HD static void bodies(rbd::BodyDesc<S>* b, const S* pi) {\n"
             : "  // inertia in the body frame (m, m·c, I about the body origin)\n"
-              "  template <class S> RBD_HD static void bodies(rbd::BodyDesc<S>* b) {\n");
+              "  // (constexpr: a compiled instance keeps them in a constant table, codegen/instance.hpp)\n"
+              "  template <class S> RBD_HD static constexpr void bodies(rbd::BodyDesc<S>* b) {\n");
   for (int i = 0; i < nb; ++i) {
     const BodyDesc<double>& d = model.bodies[i];
     const std::string parent = d.parent < 0 ? "world" : model.body_names[d.parent];

@@ -9,8 +9,8 @@
 // each other, the robot's sizes and the table of (registered operation's
 // name, per-sample kernel). The loader refuses an instance whose ABI,
 // fingerprint or sizes differ from its own and its model's. Each kernel
-// is the registry's own Op::run on the robot's bodies as literals (the
-// generated struct's bodies<double>): the workspace and the arrays are the
+// is the registry's own Op::run on the robot's bodies as a constant table (the
+// generated struct's constexpr bodies<double>): the workspace and the arrays are the
 // caller's, as the serial loop (ops::run_serial) passes them; the model view
 // it passes is the same robot's and is not read.
 #pragma once
@@ -29,12 +29,17 @@ struct Entry {
   ops::Kernel<double> run;
 };
 
-// Op::run with the robot R's constants in place of the passed view's
+// the robot R's bodies as a constant table, filled at compile time by its bodies<double>
+template <class R> struct BodyTable {
+  BodyDesc<double> body[R::nb];
+  constexpr BodyTable() : body{} { R::template bodies<double>(body); }
+};
+template <class R> inline constexpr BodyTable<R> kBodies{};
+
+// Op::run on the robot R's constant table in place of the passed view
 template <class R, class Op>
 bool kernel(const ModelView<double>&, Workspace<double>& w, const ops::OpArgs<double>& a) {
-  BodyDesc<double> body[R::nb];
-  R::template bodies<double>(body);
-  const ModelView<double> m{R::nb, R::nq, R::nv, R::has_mimic, body};
+  const ModelView<double> m{R::nb, R::nq, R::nv, R::has_mimic, kBodies<R>.body};
   return Op::run(m, w, a);
 }
 
