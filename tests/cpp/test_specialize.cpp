@@ -10,6 +10,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <ostream>
 
 #include "rbdkit/codegen/instance.hpp"
 #include "registry_helpers.hpp"
@@ -31,6 +32,7 @@ struct Robot {
   const char* file;
   bool floating;
 };
+void PrintTo(const Robot& r, std::ostream* os) { *os << r.file << (r.floating ? " floating" : " fixed"); }
 
 }  // namespace
 
