@@ -129,8 +129,9 @@ class Handle {
   // ---- a compiled per-robot instance (codegen/specialize.hpp): compiled on first use (cached
   // after), then the serial loop (float64: one sample, or every call of a threads = 0 handle) runs
   // its kernels for the operations it has. Returns whether it is in use; when it could not be made
-  // (no compiler, a failed compilation, a CUDA handle: its kernels are the CUDA backend's),
-  // false, the generic kernels stay, and specialize_error() says why.
+  // (no compiler, a failed compilation, a library that fails its checks, a float32 handle: the
+  // engine computes its every call, a CUDA handle: its kernels are the CUDA backend's), false,
+  // the generic kernels stay, and specialize_error() says why. Not while other calls run.
   bool specialize(const SpecializeOptions& options = {});
   bool specialized() const { return instance_ != nullptr; }
   const std::string& specialize_error() const { return specialize_error_; }
