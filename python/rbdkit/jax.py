@@ -125,7 +125,7 @@ from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_R
                           inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
                           quaternion_joints, regressor_jacobians, rotation, step_with_forces,
                           with_derivative_algorithms)
-from ._handle import Handle as _NumpyHandle
+from ._handle import Handle as _NumpyHandle, cuda_available
 
 _TARGET = "rbdkit_op"
 # every handle made, for the life of the process: a compiled XLA call holds the C++ handle's address,
@@ -239,7 +239,6 @@ def _check_x64(dtype):
 
 def _default_backend():
     """"cuda" where JAX computes on a GPU and this build has the real kernels, else "cpu" """
-    from ._handle import cuda_available
     compiled, devices = cuda_available()
     return "cuda" if compiled and devices > 0 and jax.default_backend() == "gpu" else "cpu"
 

@@ -12,7 +12,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -45,12 +44,13 @@ namespace {
 
 constexpr const char* kStructName = "Robot";
 
-// FNV-1a, 64 bits: the cache key (not a security boundary: the cache is the user's own folder)
+// the cache key: FNV-1a (instance.hpp's) over strings, each followed by a separator byte (not a
+// security boundary: open_instance checks who may write the library)
 struct Hash {
-  uint64_t h = 1469598103934665603ull;
+  uint64_t h = instance::kFnvBasis;
   void add(const std::string& s) {
-    for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
-    h = (h ^ 0xff) * 1099511628211ull;  // a separator: ("ab", "c") differs from ("a", "bc")
+    for (unsigned char c : s) h = instance::mix_byte(h, c);
+    h = instance::mix_byte(h, 0xff);
   }
   std::string hex() const {
     char b[17];

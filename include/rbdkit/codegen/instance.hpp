@@ -54,14 +54,18 @@ using InstanceOps = Ops<ops::InverseDynamics, ops::NonlinearEffects, ops::Genera
                         ops::Aba, ops::ForwardDynamics, ops::InverseDynamicsGradient, ops::ForwardDynamicsGradient,
                         ops::Integrator, ops::IntegratorGradient>;
 
-// FNV-1a steps over integers and names: the fingerprint below
+// FNV-1a (64 bits) over bytes, integers and names: the fingerprint below, and the cache key
+// (src/codegen/specialize.cpp)
+constexpr unsigned long long kFnvBasis = 1469598103934665603ull;
+constexpr unsigned long long mix_byte(unsigned long long h, unsigned char c) { return (h ^ c) * 1099511628211ull; }
 constexpr unsigned long long mix(unsigned long long h, unsigned long long v) {
-  for (int i = 0; i < 8; ++i) h = (h ^ ((v >> (8 * i)) & 0xff)) * 1099511628211ull;
+  for (int i = 0; i < 8; ++i) h = mix_byte(h, static_cast<unsigned char>(v >> (8 * i)));
   return h;
 }
+// a name, then a separator byte (so that ("ab", "c") and ("a", "bc") differ)
 constexpr unsigned long long mix(unsigned long long h, const char* s) {
-  while (*s) h = mix(h, static_cast<unsigned char>(*s++));
-  return mix(h, 0xffu);
+  while (*s) h = mix_byte(h, static_cast<unsigned char>(*s++));
+  return mix_byte(h, 0xff);
 }
 template <class Op> constexpr unsigned long long mix_op(unsigned long long h) {
   h = mix(mix(mix(h, Op::spec.name), static_cast<unsigned>(Op::spec.n_args)), static_cast<unsigned>(Op::spec.n_out));
@@ -69,7 +73,7 @@ template <class Op> constexpr unsigned long long mix_op(unsigned long long h) {
   return h;
 }
 template <class... Op> constexpr unsigned long long fingerprint(Ops<Op...>*) {
-  unsigned long long h = 1469598103934665603ull;
+  unsigned long long h = kFnvBasis;
   h = mix(mix(mix(mix(h, sizeof(Workspace<double>)), sizeof(ops::OpArgs<double>)), sizeof(BodyDesc<double>)),
           sizeof(ModelView<double>));
   h = mix(mix(h, static_cast<unsigned>(ops::kMaxArgs)), static_cast<unsigned>(ops::kMaxOutputs));
