@@ -16,7 +16,8 @@ tensors are read and written in place on PyTorch's current stream (outputs
 on their device), CPU tensors are copied to the device and back.
 
 Autograd (first order) for inverse_dynamics (∂τ/∂q, ∂τ/∂qd, M, ∂τ/∂f_ext), forward_dynamics
-and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), the
+and aba (∂qdd/∂q, ∂qdd/∂qd, M⁻¹: one forward_dynamics_gradient call; ∂qdd/∂f_ext), each
+computed only for the inputs that require grad (a gradient in u alone is one M⁻¹ call), the
 integrator and plant_step for every scheme ([A | B], and ∂x⁺/∂f_ext from
 integrator_f_ext_gradient), and, with respect to q,
 crba and minv (∂M/∂q of idsva_so), com, frame_placement, frame_jacobian and
@@ -33,13 +34,13 @@ mj_integratePos: output_convention="mujoco", as in rbdkit.jax). The
 other operations compute values; a backward pass through one raises.
 
 Three routes to the same kernel and formulas. torch.compile traces the
-custom operator. An eager call that needs autograd records a plain
-torch.autograd.Function with the operator's formulas (the operator's Python
-dispatch would cost hundreds of µs). An eager call without autograd runs the
-kernel on the tensors' memory, its layout cached per operation and
-parameters (bench/frameworks.py: about 10 µs over the NumPy handle at B = 16);
-tensors it cannot take as they are (another dtype, not contiguous, leading
-shapes to broadcast) go through the general path, which converts them.
+custom operator. An eager call runs the kernel on the tensors' memory, its
+layout cached per operation and parameters (bench/frameworks.py: about 10 µs
+over the NumPy handle at B = 16); where it needs autograd, that call is
+recorded as a plain torch.autograd.Function with the operator's formulas (the
+operator's Python dispatch would cost hundreds of µs). Tensors the eager path
+cannot take as they are (another dtype, not contiguous, leading shapes to
+broadcast) go through the general path, which converts them.
 """
 
 import atexit
@@ -166,6 +167,26 @@ class _EagerCall(torch.autograd.Function):
         outs = _kernel(list(xs), *rest)
         _setup_context(ctx, (list(xs),) + tuple(rest), outs)
         return tuple(outs)
+
+    @staticmethod
+    def backward(ctx, *grads):
+        return (None, *_backward(ctx, grads)[0])
+
+
+class _RawCall(torch.autograd.Function):
+    """Handle._eager's call (a cached RawCall on the tensors' memory) recorded for autograd: the eager
+    path's few µs instead of the general path's argument handling; the same backward formulas"""
+
+    @staticmethod
+    def forward(ctx, meta, *xs):
+        h, raw, out_shapes, lead, device, on_device, backward = meta
+        res = [torch.empty(lead + tuple(s), dtype=h.dtype, device=device) for s in out_shapes]
+        args = ([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
+        raw(*args) if device is None else raw(*args, on_device)
+        ctx.set_materialize_grads(False)
+        ctx.save_for_backward(*xs, *res)
+        ctx.n_in, ctx.call, ctx.handle, ctx.rest = len(xs), backward, h, []
+        return tuple(res)
 
     @staticmethod
     def backward(ctx, *grads):
@@ -307,23 +328,29 @@ class Handle:
             res = _AUTOGRAD if grad and not compiling else self._values(op, kw)
         if res is _AUTOGRAD:
             _check_differentiable(self, op, kw)
-            res = self._values(op, kw, eager_autograd=True)  # autograd without the operator's dispatch
+            res = self._eager(op, kw, autograd=True)  # the eager path, recorded for autograd
+            if res is None:  # autograd without the operator's dispatch
+                res = self._values(op, kw, eager_autograd=True)
         return res[0] if len(res) == 1 else tuple(res)
 
-    def _eager(self, op, kw, outputs=-1):
+    def _eager(self, op, kw, outputs=-1, autograd=False):
         """the outputs of a call with no autograd, outside torch.compile, as a list: the kernel on the
         tensors' memory, the call's layout cached per operation, parameters and arrays present (a few
         µs on top of the engine). None where the general path (_values) must take it: an array that
         is not a contiguous tensor of the handle's dtype, tensors on several devices, leading shapes
         that need broadcasting, a shape other than the planned one (the general path's message), an
-        unhashable parameter; _AUTOGRAD where a tensor requires grad and autograd is on"""
+        unhashable parameter; _AUTOGRAD where a tensor requires grad and autograd is on, unless `autograd`
+        (then the call is recorded for autograd: _RawCall)"""
         arrays, key, xs, grad = _ARRAY_ARGUMENTS[op], [op, outputs], [], torch.is_grad_enabled()
+        record = False
         for name, v in kw.items():
             if name in arrays and v is not None:
                 if not isinstance(v, torch.Tensor):
                     return None
                 if grad and v.requires_grad:
-                    return _AUTOGRAD
+                    if not autograd:
+                        return _AUTOGRAD
+                    record = True
                 xs.append(v)
                 key.append(name)
             elif type(v) in _PLAIN:  # (the type too: True, 1 and 1.0 are equal keys, not equal arguments)
@@ -337,7 +364,7 @@ class Handle:
             plan = self._eager_plan(op, kw, key, outputs)
             if plan is None:
                 return None
-        raw, shapes, out_shapes = plan
+        raw, shapes, out_shapes, backward = plan
         dtype, lead, cpu = self.dtype, None, True
         for x, shape in zip(xs, shapes):  # (arguments in the call's order: run_raw takes them so)
             if not (x.dtype is dtype and x.is_contiguous()):
@@ -351,8 +378,16 @@ class Handle:
             elif x.shape != lead + shape:
                 return None
         lead = lead or ()
+        if record:
+            device = None if cpu else xs[0].device
+            if not cpu and any(x.device != device for x in xs):
+                return None
+            on_device = None if cpu else self._check_device(device)
+            return list(_RawCall.apply((self, raw, out_shapes, lead, device, on_device, backward), *xs))
         if cpu:
-            res = [torch.empty(*lead, *s, dtype=dtype) for s in out_shapes]  # (varargs: faster than a tuple)
+            # (varargs: faster than a tuple; a scalar's shape is the empty tuple)
+            res = [torch.empty(*lead, *s, dtype=dtype) if lead or s else torch.empty((), dtype=dtype)
+                   for s in out_shapes]
             raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
             return res
         devices = {x.device for x in xs}
@@ -360,7 +395,7 @@ class Handle:
             return None
         device = devices.pop()
         on_device = self._check_device(device)
-        res = [torch.empty(*lead, *s, dtype=dtype, device=device) for s in out_shapes]
+        res = [torch.empty(lead + tuple(s), dtype=dtype, device=device) for s in out_shapes]
         raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1, on_device)
         return res
 
@@ -370,7 +405,8 @@ class Handle:
         present = [n for n in key[2:] if isinstance(n, str)]  # (the arrays' names; parameters are tuples)
         params = tuple((n, tuple(v) if isinstance(v, list) else v) for n, v in kw.items() if n not in present)
         try:
-            op_id, planned, reals, choices, ee, outs, _ = _plan(self._address, op, params, tuple(present), outputs)
+            op_id, planned, reals, choices, ee, outs, key_json = _plan(self._address, op, params, tuple(present),
+                                                                         outputs)
         except (TypeError, ValueError):
             return None
         slot_shape = {name: (k, shape) for k, name, shape in planned}
@@ -378,7 +414,8 @@ class Handle:
         raw = _core.RawCall(self._address, op_id, [slot_shape[n][0] for n in present], [o for o, _ in outs],
                             list(choices), list(ee), list(reals), [math.prod(s) for s in shapes],
                             [math.prod(s) for s in out_shapes], 8 if self.dtype is torch.float64 else 4)
-        plan = (raw, shapes, out_shapes)
+        # (the backward formulas' view of the call: operation, argument slots, parameters as JSON)
+        plan = (raw, shapes, out_shapes, (op_id, [slot_shape[n][0] for n in present], key_json))
         if len(self._plans) < 4096:
             self._plans[tuple(key)] = plan
         return plan
@@ -472,25 +509,39 @@ def _mtv(A, y):
 
 
 def _dynamics_vjp(h, op, call, kw, grads, outs):
+    """the dynamics' cotangents, for the inputs that require a gradient only: q or qd need the
+    first-order derivatives (and a free or spherical joint's q the tangent map), the third input alone
+    needs only M (inverse dynamics) or M⁻¹ (forward dynamics)"""
     ct = grads[0]
     q, qd = call["q"], call["qd"]
     third = "qdd" if op == "inverse_dynamics" else [n for n in call if n not in ("q", "qd", "f_ext")][0]
+    need = {n for n, x in call.items() if x.requires_grad}
     base = {k: v for k, v in kw.items()}
     if "f_ext" in call:
         base["f_ext"] = call["f_ext"].detach()
+    Dq = Dqd = D3 = None
     if op == "inverse_dynamics":
-        g = {k: v for k, v in base.items() if k in {a[0] for a in _SIGNATURES["inverse_dynamics_gradient"]}}
-        D = h._values("inverse_dynamics_gradient", dict(g, q=q, qd=qd, **({"qdd": call["qdd"]} if "qdd" in call
-                                                                           else {})))[0]
-        Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
-        D3 = h._values("crba", {"q": q})[0]
-    else:
+        if need & {"q", "qd"}:
+            g = {k: v for k, v in base.items() if k in {a[0] for a in _SIGNATURES["inverse_dynamics_gradient"]}}
+            D = h._values("inverse_dynamics_gradient", dict(g, q=q, qd=qd, **({"qdd": call["qdd"]} if "qdd" in call
+                                                                               else {})))[0]
+            Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
+        if third in need:
+            D3 = h._values("crba", {"q": q})[0]
+    elif need & {"q", "qd"}:
         g = {k: v for k, v in base.items() if k in {a[0] for a in _SIGNATURES["forward_dynamics_gradient"]}}
         Dq, Dqd, _, D3 = h._values("forward_dynamics_gradient", dict(g, q=q, qd=qd, u=call[third]), outputs=0b1111)
-    out = {"q": _tangent_map(h, q, _mtv(Dq, ct), "pinv_T"), "qd": _mtv(Dqd, ct)}
-    if third in call:
+    elif third in need:  # ∂q̈/∂u = M⁻¹, a fraction of the gradient's cost (MuJoCo's convention, which would
+        # change it, is refused for the dynamics on models with quaternions)
+        D3 = h._values("minv", {"q": q})[0]
+    out = {}
+    if "q" in need:
+        out["q"] = _tangent_map(h, q, _mtv(Dq, ct), "pinv_T")
+    if "qd" in need:
+        out["qd"] = _mtv(Dqd, ct)
+    if third in need:
         out[third] = _mtv(D3, ct)
-    if "f_ext" in call and call["f_ext"].requires_grad:  # -J_bᵀ or M⁻¹ J_bᵀ per body (f_ext_gradient)
+    if "f_ext" in need:  # -J_bᵀ or M⁻¹ J_bᵀ per body (f_ext_gradient)
         Df = h._values("f_ext_gradient", {"q": q})[0 if op == "inverse_dynamics" else 1]  # (..., nb, nv, 6)
         out["f_ext"] = torch.einsum("...bvk,...v->...bk", Df, ct)
     return out
@@ -510,8 +561,11 @@ def _step_vjp(h, op, call, kw, grads, outs):
     lam = torch.cat([_tangent_map(h, x_next[..., :nq], ct[..., :nq], "transpose", mujoco), ct[..., nq:]], -1)
     g = _mtv(AB, lam)  # [g_q (tangent); g_qd; g_u]
     q = call["q"] if op == "integrator" else call["x"][..., :nq]
-    gq = _tangent_map(h, q, g[..., :nv], "pinv_T", mujoco)
-    out = {"q": gq, "qd": g[..., nv:2 * nv]} if op == "integrator" else {"x": torch.cat([gq, g[..., nv:2 * nv]], -1)}
+    # the tangent map to q's coordinates only where q (or x) requires a gradient
+    need_q = call["q"].requires_grad if op == "integrator" else call["x"].requires_grad
+    gq = _tangent_map(h, q, g[..., :nv], "pinv_T", mujoco) if need_q else None
+    out = ({"q": gq, "qd": g[..., nv:2 * nv]} if op == "integrator" else
+           {"x": torch.cat([gq, g[..., nv:2 * nv]], -1) if need_q else None})
     out["u"] = g[..., 2 * nv:]
     if with_f:
         out["f_ext"] = torch.einsum("...rbk,...r->...bk", Df, lam)

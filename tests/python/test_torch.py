@@ -87,6 +87,14 @@ def test_eager_fast_path_and_its_fallbacks_agree():
                                   h.numpy.inverse_dynamics(q, qd, u, gravity=-2.0))
     np.testing.assert_array_equal(h.inverse_dynamics(tq[0], tqd[0], tu[0]).numpy(),
                                   h.numpy.inverse_dynamics(q[0], qd[0], u[0]))  # (one sample: not the batch path)
+    # a scalar result of one sample (shape ()): the kinetic energy ½ qdᵀ M qd, and a cost
+    M = h.numpy.crba(q[0])
+    e = h.kinetic_energy(tq[0], tqd[0])
+    assert e.shape == () and np.isclose(e.item(), 0.5 * qd[0] @ M @ qd[0], rtol=1e-12)
+    rng = np.random.default_rng(4)
+    x, x_des, w = rng.standard_normal(h.nq + h.nv), rng.standard_normal(h.nq + h.nv), rng.uniform(0.5, 2, h.nq + h.nv)
+    c = h.quadratic_state_cost(*(torch.tensor(a) for a in (x, x_des, w)))[0]  # (value, gradient, Hessian)
+    assert c.shape == () and c.item() == h.numpy.quadratic_state_cost(x, x_des, w)[0]
     # under torch.no_grad a tensor that requires grad takes the fast path, and its result has no graph
     with torch.no_grad():
         out = h.inverse_dynamics(tq.clone().requires_grad_(), tqd, tu)
@@ -124,6 +132,43 @@ def test_gradcheck(name, floating):
         names = list(arrays)
         assert torch.autograd.gradcheck(lambda *a: getattr(h, op)(**dict(zip(names, a)))[0],
                                         tuple(tensors(*arrays.values()))), op
+
+
+@pytest.mark.parametrize("name,floating,convention", [("iiwa", False, "pinocchio"), ("hyq", True, "pinocchio"),
+                                                      ("hyq", True, "mujoco"), ("mimic", False, "pinocchio")])
+def test_gradients_of_some_inputs_only(name, floating, convention):
+    # the backward formulas compute what the inputs that require grad need (M or M⁻¹ alone for the
+    # third input of the dynamics, no tangent map for a q that needs none): each subset's gradients
+    # equal those of the call where every input requires grad (checked against gradcheck and central
+    # differences above and below)
+    h = handle(name, floating)
+    if convention == "mujoco":
+        h = rt.Handle(h.model, threads=1, output_convention="mujoco")
+    q, qd, u = states(h, 3, seed=5)
+    if convention == "mujoco":  # MuJoCo's coordinates: quaternions w first, the free joints' velocity in the world
+        x = np.stack([h.numpy.state_to_mujoco(np.concatenate([a, b])) for a, b in zip(q, qd)])
+        q, qd = x[:, :h.nq], x[:, h.nq:]
+    ct = torch.tensor(np.random.default_rng(7).standard_normal((3, h.nv)))
+    ct_x = torch.tensor(np.random.default_rng(8).standard_normal((3, h.nq + h.nv)))
+    calls = {"inverse_dynamics": (lambda a, b, c: h.inverse_dynamics(a, b, c), ct),
+             "forward_dynamics": (lambda a, b, c: h.forward_dynamics(a, b, c), ct),
+             "aba": (lambda a, b, c: h.aba(a, b, c), ct),
+             "integrator": (lambda a, b, c: h.integrator(a, b, c, 0.01, "rk4"), ct_x),
+             "plant_step": (lambda a, b, c: h.plant_step(torch.cat([a, b], -1), c, 0.01, "euler"), ct_x)}
+    for op, (f, w) in calls.items():
+        if convention == "mujoco" and op != "integrator":  # (the dynamics refuse it on a floating base)
+            continue
+        full = tensors(q, qd, u)
+        (f(*full) * w).sum().backward()
+        for need in ({2}, {0}, {1}, {0, 2}, {1, 2}):
+            xs = [torch.tensor(a, requires_grad=k in need) for k, a in enumerate((q, qd, u))]
+            (f(*xs) * w).sum().backward()
+            for k in range(3):
+                if k in need:
+                    np.testing.assert_allclose(xs[k].grad.numpy(), full[k].grad.numpy(), rtol=1e-9, atol=1e-9,
+                                               err_msg=f"{op} {need} {k}")
+                else:
+                    assert xs[k].grad is None
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
