@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "device.hpp"
+#include "memory.hpp"
 #include "rbdkit/batch/dynamics.hpp"
 
 namespace rbd {
@@ -172,6 +173,19 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     if (c.out[o] && !device_arrays) out_at[o] = place(sizeof(T) * out_values[o] * B);
   }
   if (c.n_ee) ee_at = place(sizeof(int) * c.n_ee);
+  // the interpret device reads device arrays on the CPU: a GPU's array is refused, not read
+  if (device_arrays && interpret) {
+    auto refuse = [&](const char* name) {
+      throw std::invalid_argument(std::string(op.name) + ": " + name +
+                                  ": an array in GPU memory, and this backend='cuda' handle runs in interpret "
+                                  "mode on the CPU (RBDKIT_CUDA_INTERPRET=1), which cannot read it; pass host "
+                                  "arrays, or make the handle without RBDKIT_CUDA_INTERPRET to run on the GPU");
+    };
+    for (int k = 0; k < op.n_args; ++k)
+      if (c.in[k] && op.args[k].kind != ops::kFrame && cuda::gpu_only_memory(c.in[k])) refuse(op.args[k].name);
+    for (int o = 0; o < op.n_out; ++o)
+      if (c.out[o] && cuda::gpu_only_memory(c.out[o])) refuse(op.out[o].name);
+  }
   unsigned char* io_p = static_cast<unsigned char*>(io.reserve(std::max<size_t>(io_bytes, 1)));
   for (int k = 0; k < op.n_args; ++k) {
     dc.real[k] = static_cast<T>(c.real[k]);

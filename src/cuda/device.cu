@@ -7,6 +7,7 @@
 #include <string>
 
 #include "device.hpp"
+#include "memory.hpp"
 
 namespace rbd {
 namespace cuda {
@@ -95,6 +96,17 @@ int cuda_device_count() {
   return cudaGetDeviceCount(&n) == cudaSuccess ? n : 0;
 }
 std::unique_ptr<Device> make_cuda_device() { return std::make_unique<CudaDevice>(); }
+
+bool gpu_only_memory(const void* p) {
+  static const bool any_device = cuda_device_count() > 0;  // (no query, and no context, without one)
+  if (!any_device || !p) return false;
+  cudaPointerAttributes a{};
+  if (cudaPointerGetAttributes(&a, p) != cudaSuccess) {
+    cudaGetLastError();  // (clears the error: not a launch's)
+    return false;
+  }
+  return a.type == cudaMemoryTypeDevice;
+}
 
 }  // namespace cuda
 }  // namespace rbd

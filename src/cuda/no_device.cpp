@@ -3,12 +3,14 @@
 #include <stdexcept>
 
 #include "device.hpp"
+#include "memory.hpp"
 
 namespace rbd {
 namespace cuda {
 
 bool cuda_compiled() { return false; }
 int cuda_device_count() { return 0; }
+bool gpu_only_memory(const void*) { return false; }
 std::unique_ptr<Device> make_cuda_device() {
   throw std::runtime_error(
       "backend='cuda': this build of rbdkit has no CUDA kernels (nvcc was not found when it was built); "

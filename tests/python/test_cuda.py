@@ -153,6 +153,26 @@ def test_device_arrays_are_checked(interpret):
         h.crba(Strided(q))
 
 
+def test_interpret_mode_refuses_gpu_arrays(monkeypatch):
+    # interpret mode reads device arrays on the CPU: host memory behind __cuda_array_interface__ (the
+    # stand-ins) is read, an array in a GPU's memory is refused by name (it would be read as host memory)
+    monkeypatch.setenv("RBDKIT_CUDA_INTERPRET", "1")
+    m = rbdkit.robots.load("iiwa")
+    h, cpu = rbdkit.Handle(m, backend="cuda"), rbdkit.Handle(m)
+    q, qd, tau = states(h, 3)
+    np.testing.assert_allclose(h.inverse_dynamics(StandIn(q), StandIn(qd), StandIn(tau)).a,
+                               cpu.inverse_dynamics(q, qd, tau), rtol=1e-12, atol=1e-12)
+    if not ON_DEVICE:
+        return
+    torch = pytest.importorskip("torch")
+    dq, dqd, dtau = (torch.from_numpy(a).cuda() for a in (q, qd, tau))
+    with pytest.raises(ValueError, match="inverse_dynamics: q: an array in GPU memory.*interpret mode"):
+        h.inverse_dynamics(dq, dqd, dtau)
+    import rbdkit.torch as rt
+    with pytest.raises(ValueError, match="q: an array in GPU memory"):
+        rt.Handle(m, backend="cuda").inverse_dynamics(dq, dqd, dtau)
+
+
 def test_no_device_is_a_clear_error(monkeypatch):
     monkeypatch.delenv("RBDKIT_CUDA_INTERPRET", raising=False)
     compiled, devices = rbdkit.cuda_available()
