@@ -57,6 +57,27 @@ def as_list(r):
     return list(r) if isinstance(r, tuple) else [r]
 
 
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_every_registered_operation_equals_the_numpy_handle(dtype):
+    # the whole registry on a floating base, batched and one sample (test_handle's arguments for each
+    # operation), eager and under jax.jit: the same outputs bit for bit, shapes and dtypes included
+    from test_handle import CALLS, REGISTERED, call, one_sample, values
+    m = rbdkit.robots.load("hyq", floating_base=True)
+    hn, hj = rbdkit.Handle(m, threads=1, dtype=dtype), rj.Handle(m, threads=1, dtype=dtype)
+    for op in REGISTERED:
+        for v in (values(m, 3), one_sample(values(m, 3))):
+            v = {k: x.astype(dtype) if isinstance(x, np.ndarray) else x for k, x in v.items()}
+            want = as_list(call(hn, op, v))
+            jv = {k: jnp.asarray(x) if isinstance(x, np.ndarray) else x for k, x in v.items()}
+            arrays = [n for n in CALLS[op][0] if isinstance(v[n], np.ndarray)]
+            jitted = jax.jit(lambda *a: call(hj, op, dict(jv, **dict(zip(arrays, a)))))  # noqa: B023
+            for got in (as_list(call(hj, op, jv)), as_list(jitted(*[jv[n] for n in arrays]))):
+                assert len(got) == len(want), op
+                for g, w in zip(got, want):
+                    assert g.dtype == np.dtype(dtype) and g.shape == w.shape, op
+                    np.testing.assert_array_equal(np.asarray(g), w, err_msg=op)
+
+
 @pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("atlas", True)])
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_values_equal_the_numpy_handle(name, floating, dtype):

@@ -49,6 +49,29 @@ def test_values_equal_the_numpy_handle(name, floating, dtype):
             np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
 
 
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_every_registered_operation_equals_the_numpy_handle(dtype):
+    # the whole registry on a floating base, batched and one sample (test_handle's arguments for each
+    # operation): the same outputs bit for bit, shapes and dtypes included
+    from test_handle import REGISTERED, call, one_sample, values
+    m = rbdkit.robots.load("hyq", floating_base=True)
+    hn, ht = rbdkit.Handle(m, threads=1, dtype=dtype), rt.Handle(m, threads=1, dtype=dtype)
+    for op in REGISTERED:
+        for v in (values(m, 3), one_sample(values(m, 3))):
+            v = {k: x.astype(dtype) if isinstance(x, np.ndarray) else x for k, x in v.items()}
+            want = as_list(call(hn, op, v))
+            got = as_list(call(ht, op, {k: torch.from_numpy(x) if isinstance(x, np.ndarray) else x
+                                        for k, x in v.items()}))
+            assert len(got) == len(want), op
+            for g, w in zip(got, want):
+                assert g.dtype == getattr(torch, dtype) and g.shape == w.shape, op
+                np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
+
+
+def as_list(r):
+    return list(r) if isinstance(r, tuple) else [r]
+
+
 def test_leading_batch_shapes_and_broadcasting():
     h = handle("hyq", True)
     q, qd, u = states(h, 6)
