@@ -14,7 +14,7 @@ JOBS=${JOBS:-2}
 REPS=${REPS:-3}
 MIN_TIME=${MIN_TIME:-0.1}
 if [[ ! -f "$BUILD/CMakeCache.txt" ]]; then
-  "$ROOT/bench/run.sh" --benchmark_filter=NONE >/dev/null
+  BENCH_REPORT=0 "$ROOT/bench/run.sh" --check_only >/dev/null
 fi
 cmake --build "$BUILD" --target rbdkit_bench_batch -j "$JOBS"
 "$BUILD/bench/rbdkit_bench_batch" \

@@ -507,6 +507,11 @@ def _zero(t):
     return isinstance(t, jax.custom_derivatives.SymbolicZero)
 
 
+def _sharded_constant(x):
+    """whether x is a concrete array (not a tracer) laid out over several devices"""
+    return isinstance(x, jax.Array) and not isinstance(x, jax.core.Tracer) and len(x.sharding.device_set) > 1
+
+
 def _dense(t, p):
     """a tangent as an array (a symbolic zero for an input JAX does not differentiate)"""
     return jnp.zeros(jnp.shape(p), jnp.result_type(p)) if _zero(t) else t
@@ -529,22 +534,38 @@ def _only(kw, op):
 
 def _dynamics_jvp(h, op, call, names, tangents):
     """inverse_dynamics (q, qd, qdd -> tau) and forward_dynamics / aba (q, qd, u -> qdd), f_ext included
-    (f_ext_gradient: ∂τ/∂f_b = -J_bᵀ, ∂qdd/∂f_b = M⁻¹ J_bᵀ)"""
+    (f_ext_gradient: ∂τ/∂f_b = -J_bᵀ, ∂qdd/∂f_b = M⁻¹ J_bᵀ); the first-order derivatives only where q or
+    qd has a tangent (else M, or M⁻¹, alone for the third input's)"""
     _check_convention(h, op, call)
     third = "qdd" if op == "inverse_dynamics" else names[2]
     q, qd = call["q"], call["qd"]
+    t = dict(zip(names, tangents))
+    with_third = third in t and not _zero(t[third])
+    # a q held constant on several devices (a sharded array closed over) leaves M⁻¹(q) alone without a
+    # sharded operand, so XLA would compute it whole on every device: the gradient call (its u sharded)
+    # is partitioned instead
+    moving = not (_zero(t["q"]) and _zero(t["qd"])) or (op != "inverse_dynamics" and with_third and
+                                                        _sharded_constant(q))
+    Dq = Dqd = D3 = None
     if op == "inverse_dynamics":
         out = h._values(op, (), call)
-        D = h._values("inverse_dynamics_gradient", (), _only(call, "inverse_dynamics_gradient"))
-        Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
-        D3 = h._values("crba", (), {"q": q})  # ∂τ/∂qdd = M
-    else:  # one call: ∂qdd/∂q, ∂qdd/∂qd, qdd and ∂qdd/∂u = M⁻¹
+        if moving:
+            D = h._values("inverse_dynamics_gradient", (), _only(call, "inverse_dynamics_gradient"))
+            Dq, Dqd = D[..., :h.nv], D[..., h.nv:]
+        if with_third:
+            D3 = h._values("crba", (), {"q": q})  # ∂τ/∂qdd = M
+    elif moving:  # one call: ∂qdd/∂q, ∂qdd/∂qd, qdd and ∂qdd/∂u = M⁻¹
         g = _only(call, "forward_dynamics_gradient")
         g["u"] = call[third]
         Dq, Dqd, out, D3 = h._values("forward_dynamics_gradient", (), g, outputs=0b1111)
-    t = dict(zip(names, tangents))
-    dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
-    if third in t and not _zero(t[third]):
+    else:  # ∂qdd/∂u = M⁻¹ alone
+        out = h._values(op, (), call)
+        if with_third:
+            D3 = h._values("minv", (), {"q": q})
+    dout = jnp.zeros_like(out)
+    if moving:
+        dout = _mv(Dq, _to_tangent(h, q, _dense(t["q"], q))) + _mv(Dqd, _dense(t["qd"], qd))
+    if with_third:
         dout = dout + _mv(D3, t[third])
     if "f_ext" in t and not _zero(t["f_ext"]):
         Df = h._values("f_ext_gradient", (), {"q": q})[0 if op == "inverse_dynamics" else 1]  # (..., nb, nv, 6)

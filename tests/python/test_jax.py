@@ -162,6 +162,28 @@ def test_dynamics_gradients_against_central_differences(name, floating):
         assert rel(Jf[0], Jqd) < 1e-6 and rel(Jf[1], Ju) < 1e-6, op
 
 
+@pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("mimic", False)])
+def test_gradients_of_some_inputs_only(name, floating):
+    # the rule computes what the differentiated inputs need (M or M⁻¹ alone when only the third input
+    # has a tangent): each subset's gradients, reverse and forward mode, equal those of the call where
+    # every input is differentiated (checked against central differences above)
+    h = handle(name, floating)
+    q, qd, u = states(h, 3, seed=5)
+    w = np.random.default_rng(7).standard_normal((3, h.nv))
+    for op in ("inverse_dynamics", "forward_dynamics", "aba"):
+        f = lambda q, qd, u: jnp.sum(w * getattr(h, op)(q, qd, u))  # noqa: E731
+        full = jax.grad(f, argnums=(0, 1, 2))(q, qd, u)
+        for argnums in ((2,), (0,), (1,), (0, 2), (1, 2)):
+            got = jax.jit(jax.grad(f, argnums=argnums))(q, qd, u)
+            for k, g in zip(argnums, got):
+                np.testing.assert_allclose(g, full[k], rtol=1e-10, atol=1e-10, err_msg=f"{op} {argnums} {k}")
+        du = np.random.default_rng(8).standard_normal(u.shape)
+        _, jv = jax.jvp(lambda u: getattr(h, op)(q, qd, u), (u,), (du,))
+        _, jv_full = jax.jvp(lambda q, qd, u: getattr(h, op)(q, qd, u), (q, qd, u),
+                             (jnp.zeros_like(q), jnp.zeros_like(qd), du))
+        np.testing.assert_allclose(jv, jv_full, rtol=1e-10, atol=1e-10, err_msg=op)
+
+
 @pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True)])
 def test_external_force_gradients_against_central_differences(name, floating):
     # f_ext (nb, 6), body frames: ∂τ/∂f_ext = -J_bᵀ, ∂qdd/∂f_ext = M⁻¹ J_bᵀ, and ∂/∂q with the forces on
@@ -488,7 +510,8 @@ gj = jax.jit(jax.grad(lambda u: (h.forward_dynamics(qs, qds, u) ** 2).sum()))
 hlo = gj.lower(us).compile().as_text()
 calls = [l for l in hlo.splitlines() if 'custom_call_target="rbdkit_op"' in l]
 assert calls and all("f64[4,18,18]" in l for l in calls) and "all-gather" not in hlo, hlo
-np.testing.assert_allclose(np.asarray(gj(us)), np.asarray(g1), rtol=1e-13, atol=1e-12)
+# (here M⁻¹ comes from the gradient call, in g1 from the minv call: equal to rounding, amplified by cond(M))
+np.testing.assert_allclose(np.asarray(gj(us)), np.asarray(g1), rtol=1e-10, atol=1e-10)
 # the first input replicated, the others sharded: the call still takes the batch sharding (no gather)
 qr = jax.device_put(q, NamedSharding(mesh, P()))
 hlo = fj.lower(qr, qds, us).compile().as_text()
