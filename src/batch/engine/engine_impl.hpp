@@ -110,6 +110,13 @@ template <typename T> struct Out {
   long w = 0;
 };
 
+// thread t's share of a call's packs, [next, end): claimed from the front by t, and by the others once
+// their own is done (Job::claim); a cache line each
+struct alignas(64) HomeRange {
+  std::atomic<long> next{0};
+  long end = 0;
+};
+
 template <typename T> struct EngineT : Engine::Impl {
   static constexpr int W = Width<T>::value;
   using P = Pack<T, W>;
@@ -117,10 +124,11 @@ template <typename T> struct EngineT : Engine::Impl {
   std::vector<BodyDesc<P>> bodies;
   ModelView<P> mv;
   std::vector<ThreadBuffer<P>> buffers;
+  std::unique_ptr<HomeRange[]> ranges;  // (threads), set by each call
   Pool pool;
 
   EngineT(const Model& m, int t, const std::string& d)
-      : Engine::Impl(m, t, d, W), bodies(m.bodies_as<P>()), buffers(t), pool(t) {
+      : Engine::Impl(m, t, d, W), bodies(m.bodies_as<P>()), buffers(t), ranges(new HomeRange[t]), pool(t) {
     mv = {m.nb(), m.nq, m.nv, m.has_mimic() ? 1 : 0, bodies.data()};
   }
   unsigned long workspace_bytes() const override {
@@ -192,22 +200,31 @@ template <typename T, typename Op> struct Job {
   ops::OpArgs<P> params{};               // the parameters (real, choice), broadcast to every lane
   std::atomic<long> failed{-1};          // the first sample of the first pack whose kernel failed
   std::atomic<long> nonfinite[ops::kMaxOutputs];  // per output: the first sample with an inf or a NaN
-  alignas(64) std::atomic<long> next{0};  // the first pack not handed out yet (a cache line of its own)
+  HomeRange* ranges = nullptr;           // (active): thread t's share of the packs, e->ranges
 
   static void call(void* self, int t) { static_cast<Job*>(self)->work(t); }
-  // the next packs [p0, p1) for one thread: guided chunks, each 1/(2·active)
-  // of those left (at least one), so that threads that start late or run
-  // slow still finish together, in O(active · log(packs)) claims
-  bool claim(long& p0, long& p1) {
-    long p = next.load(std::memory_order_relaxed);
-    for (;;) {
-      if (p >= packs) return false;
-      const long n = std::max(1L, (packs - p) / (2L * active));
-      if (next.compare_exchange_weak(p, p + n, std::memory_order_relaxed)) {
-        p0 = p, p1 = p + n;
-        return true;
+  // thread t's shares: packs [t·packs/active, (t+1)·packs/active), the same from call to call, so that
+  // repeated calls on the same arrays find each thread's inputs and outputs in its own core's cache
+  void share(int t) {
+    ranges[t].next.store(t * packs / active, std::memory_order_relaxed);
+    ranges[t].end = (t + 1) * packs / active;
+  }
+  // the next packs [p0, p1) for thread t: guided chunks, half of what is left of its own share (at
+  // least one), then of the others' shares in turn, so that threads that start late or run slow still
+  // finish together, in O(active · log(packs)) claims
+  bool claim(int t, long& p0, long& p1) {
+    for (int k = 0; k < active; ++k) {
+      HomeRange& r = ranges[(t + k) % active];
+      long p = r.next.load(std::memory_order_relaxed);
+      while (p < r.end) {
+        const long n = std::max(1L, (r.end - p) / 2);
+        if (r.next.compare_exchange_weak(p, p + n, std::memory_order_relaxed)) {
+          p0 = p, p1 = p + n;
+          return true;
+        }
       }
     }
+    return false;
   }
   // thread t's share, on its own buffer; which thread runs a pack does not
   // change its result (every pack runs the same code from its own inputs)
@@ -232,7 +249,7 @@ template <typename T, typename Op> struct Job {
       if (op.args[k].kind == ops::kConvention && params.choice[k] != kPinocchioConvention) defaults = false;
     }
     long p0, p1;
-    while (claim(p0, p1))
+    while (claim(t, p0, p1))
       for (long p = p0; p < p1; ++p) {
         const long s0 = p * W;
         const int valid = static_cast<int>(std::min<long>(W, B - s0));
@@ -308,7 +325,11 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
   }
   for (std::atomic<long>& s : job.nonfinite) s.store(-1, std::memory_order_relaxed);
   const WorkspaceLayout layout = ops::workspace_layout(op, m);
-  for (int t = 0; t < job.active; ++t) e.buffers[t].reserve(m.nb(), m.nv, values, layout);
+  job.ranges = e.ranges.get();
+  for (int t = 0; t < job.active; ++t) {
+    e.buffers[t].reserve(m.nb(), m.nv, values, layout);
+    job.share(t);
+  }
   e.pool.run(job.active, &Job<T, Op>::call, &job);
 
   const long f = job.failed.load();
