@@ -18,10 +18,12 @@ Derivatives. The operations below have a `jax.custom_jvp` rule built on
 rbdkit's analytical derivatives, not on tracing or finite differences; JAX
 transposes it for reverse mode, so jvp, grad, jacfwd and jacrev all work:
 
-    inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient), ∂τ/∂qdd = M (crba),
+    inverse_dynamics        ∂τ/∂q, ∂τ/∂qd (inverse_dynamics_gradient, where q or qd has a tangent),
+                            ∂τ/∂qdd = M (crba),
                             ∂τ/∂f_ext = -J_bᵀ per body (f_ext_gradient; f_ext in body frames)
     forward_dynamics, aba   ∂qdd/∂q, ∂qdd/∂qd and ∂qdd/∂u = M⁻¹ (forward_dynamics_gradient, one
-                            call), ∂qdd/∂f_ext = M⁻¹ J_bᵀ (f_ext_gradient)
+                            call; M⁻¹ alone, minv, when only u has a tangent), ∂qdd/∂f_ext = M⁻¹ J_bᵀ
+                            (f_ext_gradient)
     integrator, plant_step  [A | B] = ∂x⁺/∂(x, u) (integrator_gradient / plant_step_gradient), every scheme;
                             ∂x⁺/∂f_ext (integrator_f_ext_gradient)
     crba, minv              ∂M/∂q (idsva_so's dM_dq); ∂M⁻¹ = -M⁻¹ ∂M M⁻¹
@@ -543,7 +545,8 @@ def _dynamics_jvp(h, op, call, names, tangents):
     with_third = third in t and not _zero(t[third])
     # a q held constant on several devices (a sharded array closed over) leaves M⁻¹(q) alone without a
     # sharded operand, so XLA would compute it whole on every device: the gradient call (its u sharded)
-    # is partitioned instead
+    # is partitioned instead. (A replicated q passed to jit with a sharded u still takes M⁻¹ alone, each
+    # device then computing it for the whole batch: still less work than the gradient call's share.)
     moving = not (_zero(t["q"]) and _zero(t["qd"])) or (op != "inverse_dynamics" and with_third and
                                                         _sharded_constant(q))
     Dq = Dqd = D3 = None

@@ -68,6 +68,7 @@ _SIGNATURES = {name: args for name, _, _, _, args in _core.registered_operations
 _NAMES = [name for name, _, _, _, _ in _core.registered_operations()]  # by operation id
 _AUTOGRAD = object()  # Handle._eager: "this call needs autograd"
 _PLAIN = (str, int, float, bool, type(None))  # parameter types Handle._eager caches a layout for
+_CPU = torch.device("cpu")  # CPU tensors' outputs: on the CPU, whatever torch's default device
 _ARGUMENT_NAMES = {op: [a[0] for a in args] for op, args in _SIGNATURES.items()}
 _ARRAY_ARGUMENTS = {op: frozenset(a[0] for a in args if a[1] in ("array", "optional"))
                     for op, args in _SIGNATURES.items()}
@@ -180,7 +181,7 @@ class _RawCall(torch.autograd.Function):
     @staticmethod
     def forward(ctx, meta, *xs):
         h, raw, out_shapes, lead, device, on_device, backward = meta
-        res = [torch.empty(lead + tuple(s), dtype=h.dtype, device=device) for s in out_shapes]
+        res = [torch.empty(lead + tuple(s), dtype=h.dtype, device=device or _CPU) for s in out_shapes]
         args = ([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
         raw(*args) if device is None else raw(*args, on_device)
         ctx.set_materialize_grads(False)
@@ -334,9 +335,9 @@ class Handle:
         return res[0] if len(res) == 1 else tuple(res)
 
     def _eager(self, op, kw, outputs=-1, autograd=False):
-        """the outputs of a call with no autograd, outside torch.compile, as a list: the kernel on the
-        tensors' memory, the call's layout cached per operation, parameters and arrays present (a few
-        µs on top of the engine). None where the general path (_values) must take it: an array that
+        """the outputs of a call outside torch.compile, as a list: the kernel on the tensors' memory,
+        the call's layout cached per operation, parameters and arrays present (a few µs on top of the
+        engine). None where the general path (_values) must take it: an array that
         is not a contiguous tensor of the handle's dtype, tensors on several devices, leading shapes
         that need broadcasting, a shape other than the planned one (the general path's message), an
         unhashable parameter; _AUTOGRAD where a tensor requires grad and autograd is on, unless `autograd`
@@ -386,8 +387,8 @@ class Handle:
             return list(_RawCall.apply((self, raw, out_shapes, lead, device, on_device, backward), *xs))
         if cpu:
             # (varargs: faster than a tuple; a scalar's shape is the empty tuple)
-            res = [torch.empty(*lead, *s, dtype=dtype) if lead or s else torch.empty((), dtype=dtype)
-                   for s in out_shapes]
+            res = [torch.empty(*lead, *s, dtype=dtype, device=_CPU) if lead or s else
+                   torch.empty((), dtype=dtype, device=_CPU) for s in out_shapes]
             raw([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
             return res
         devices = {x.device for x in xs}

@@ -101,8 +101,9 @@ bool gpu_only_memory(const void* p) {
   static const bool any_device = cuda_device_count() > 0;  // (no query, and no context, without one)
   if (!any_device || !p) return false;
   cudaPointerAttributes a{};
-  if (cudaPointerGetAttributes(&a, p) != cudaSuccess) {
-    cudaGetLastError();  // (clears the error: not a launch's)
+  const cudaError_t e = cudaPointerGetAttributes(&a, p);
+  if (e != cudaSuccess) {
+    if (cudaPeekAtLastError() == e) cudaGetLastError();  // (clears the query's error, not another's)
     return false;
   }
   return a.type == cudaMemoryTypeDevice;

@@ -171,22 +171,23 @@ def test_gradients_of_some_inputs_only(name, floating, convention):
     if convention == "mujoco":  # MuJoCo's coordinates: quaternions w first, the free joints' velocity in the world
         x = np.stack([h.numpy.state_to_mujoco(np.concatenate([a, b])) for a, b in zip(q, qd)])
         q, qd = x[:, :h.nq], x[:, h.nq:]
+    f_ext = 0.3 * np.random.default_rng(6).standard_normal((3, h.nb, 6))
     ct = torch.tensor(np.random.default_rng(7).standard_normal((3, h.nv)))
     ct_x = torch.tensor(np.random.default_rng(8).standard_normal((3, h.nq + h.nv)))
-    calls = {"inverse_dynamics": (lambda a, b, c: h.inverse_dynamics(a, b, c), ct),
-             "forward_dynamics": (lambda a, b, c: h.forward_dynamics(a, b, c), ct),
-             "aba": (lambda a, b, c: h.aba(a, b, c), ct),
-             "integrator": (lambda a, b, c: h.integrator(a, b, c, 0.01, "rk4"), ct_x),
-             "plant_step": (lambda a, b, c: h.plant_step(torch.cat([a, b], -1), c, 0.01, "euler"), ct_x)}
+    calls = {"inverse_dynamics": (lambda a, b, c, f: h.inverse_dynamics(a, b, c, f_ext=f), ct),
+             "forward_dynamics": (lambda a, b, c, f: h.forward_dynamics(a, b, c, f_ext=f), ct),
+             "aba": (lambda a, b, c, f: h.aba(a, b, c, f_ext=f), ct),
+             "integrator": (lambda a, b, c, f: h.integrator(a, b, c, 0.01, "rk4", f_ext=f), ct_x),
+             "plant_step": (lambda a, b, c, f: h.plant_step(torch.cat([a, b], -1), c, 0.01, "euler", f_ext=f), ct_x)}
     for op, (f, w) in calls.items():
-        if convention == "mujoco" and op != "integrator":  # (the dynamics refuse it on a floating base)
+        if convention == "mujoco" and op not in ("integrator", "plant_step"):  # (the dynamics refuse it there)
             continue
-        full = tensors(q, qd, u)
+        full = tensors(q, qd, u, f_ext)
         (f(*full) * w).sum().backward()
-        for need in ({2}, {0}, {1}, {0, 2}, {1, 2}):
-            xs = [torch.tensor(a, requires_grad=k in need) for k, a in enumerate((q, qd, u))]
+        for need in ({2}, {0}, {1}, {0, 2}, {1, 2}, {3}, {2, 3}):
+            xs = [torch.tensor(a, requires_grad=k in need) for k, a in enumerate((q, qd, u, f_ext))]
             (f(*xs) * w).sum().backward()
-            for k in range(3):
+            for k in range(4):
                 if k in need:
                     np.testing.assert_allclose(xs[k].grad.numpy(), full[k].grad.numpy(), rtol=1e-9, atol=1e-9,
                                                err_msg=f"{op} {need} {k}")
@@ -302,6 +303,12 @@ def test_torch_compile_traces_without_graph_breaks():
     assert torch.allclose(y, y2, rtol=1e-14, atol=0)
     for a, b in ((q, q2), (qd, qd2), (u, u2), (f_ext, f_ext2)):
         assert torch.allclose(a.grad, b.grad, rtol=1e-12, atol=1e-12)
+    # traced with only u requiring grad (the rule then computes M⁻¹ alone): the eager gradient
+    qc, qdc = q.detach(), qd.detach()
+    uc, ue = u.detach().clone().requires_grad_(), u.detach().clone().requires_grad_()
+    torch.compile(lambda u: (h.aba(qc, qdc, u) ** 2).sum(), fullgraph=True, backend="aot_eager")(uc).backward()
+    (h.aba(qc, qdc, ue) ** 2).sum().backward()
+    assert torch.allclose(uc.grad, ue.grad, rtol=1e-12, atol=1e-12)
 
 
 def test_errors_are_clear():

@@ -18,7 +18,8 @@ namespace engine_detail {
 // it as thread 0; each worker t < active that arrives before the caller has
 // finished and closed the job works on it too, so a late worker (asleep,
 // or its core busy) delays nothing. The job hands out its work itself (a
-// shared counter: Job::claim below), so whichever threads come share it.
+// share per thread, the others' taken once one's own is done: Job::claim),
+// so whichever threads come share it.
 //
 // Between jobs a worker spins on the state word for up to kSpin (a pause
 // instruction per try), then sleeps on a condition variable; the caller
