@@ -23,6 +23,20 @@ CONFIGURATION_CASES = [("crba", {}), ("minv", {}), ("minv", {"output_dense": Fal
                        ("frame_jacobian", {"reference_frame": "LOCAL_WORLD_ALIGNED"}), ("end_effector_pose", {})]
 
 
+def registry_cases(dtype):
+    """every registered operation on floating HyQ, batched (3) and one sample, with test_handle's
+    arguments in `dtype`: (op, call(handle, arguments) -> outputs as a list, arguments, the NumPy
+    handle's outputs)"""
+    from test_handle import REGISTERED, call, one_sample, values
+    m = rbdkit.robots.load("hyq", floating_base=True)
+    h = rbdkit.Handle(m, threads=1, dtype=dtype)
+    as_list = lambda r: list(r) if isinstance(r, tuple) else [r]  # noqa: E731
+    for op in REGISTERED:
+        for v in (values(m, 3), one_sample(values(m, 3))):
+            v = {k: x.astype(dtype) if isinstance(x, np.ndarray) else x for k, x in v.items()}
+            yield op, (lambda hh, vv, op=op: as_list(call(hh, op, vv))), v, as_list(call(h, op, v))
+
+
 def configuration_call(h, op, kw):
     """f(handle, q) -> op's outputs as a list (a framework's handle or the NumPy one, h.numpy), with a
     frame of the model's where op takes one"""

@@ -20,7 +20,7 @@ jax.config.update("jax_enable_x64", True)
 
 from framework_cases import (CONFIGURATION_CASES, SCHEMES, central_difference, configuration_call,  # noqa: E402
                              elementwise_cases, gauss_newton_cases, Handles, import_example,
-                             import_without, on_manifold, rel, states, tangent_difference,
+                             import_without, on_manifold, registry_cases, rel, states, tangent_difference,
                              to_tangent_gradient)
 
 # every robot family: serial arm, quadruped and humanoid with free flyers,
@@ -61,21 +61,16 @@ def as_list(r):
 def test_every_registered_operation_equals_the_numpy_handle(dtype):
     # the whole registry on a floating base, batched and one sample (test_handle's arguments for each
     # operation), eager and under jax.jit: the same outputs bit for bit, shapes and dtypes included
-    from test_handle import CALLS, REGISTERED, call, one_sample, values
-    m = rbdkit.robots.load("hyq", floating_base=True)
-    hn, hj = rbdkit.Handle(m, threads=1, dtype=dtype), rj.Handle(m, threads=1, dtype=dtype)
-    for op in REGISTERED:
-        for v in (values(m, 3), one_sample(values(m, 3))):
-            v = {k: x.astype(dtype) if isinstance(x, np.ndarray) else x for k, x in v.items()}
-            want = as_list(call(hn, op, v))
-            jv = {k: jnp.asarray(x) if isinstance(x, np.ndarray) else x for k, x in v.items()}
-            arrays = [n for n in CALLS[op][0] if isinstance(v[n], np.ndarray)]
-            jitted = jax.jit(lambda *a: call(hj, op, dict(jv, **dict(zip(arrays, a)))))  # noqa: B023
-            for got in (as_list(call(hj, op, jv)), as_list(jitted(*[jv[n] for n in arrays]))):
-                assert len(got) == len(want), op
-                for g, w in zip(got, want):
-                    assert g.dtype == np.dtype(dtype) and g.shape == w.shape, op
-                    np.testing.assert_array_equal(np.asarray(g), w, err_msg=op)
+    hj = rj.Handle(rbdkit.robots.load("hyq", floating_base=True), threads=1, dtype=dtype)
+    for op, call, v, want in registry_cases(dtype):
+        jv = {k: jnp.asarray(x) if isinstance(x, np.ndarray) else x for k, x in v.items()}
+        arrays = [k for k, x in v.items() if isinstance(x, np.ndarray)]
+        jitted = jax.jit(lambda *a: call(hj, dict(jv, **dict(zip(arrays, a)))))  # noqa: B023
+        for got in (call(hj, jv), jitted(*[jv[n] for n in arrays])):
+            assert len(got) == len(want), op
+            for g, w in zip(got, want):
+                assert g.dtype == np.dtype(dtype) and g.shape == w.shape, op
+                np.testing.assert_array_equal(np.asarray(g), w, err_msg=op)
 
 
 @pytest.mark.parametrize("name,floating", [("iiwa", False), ("hyq", True), ("atlas", True)])

@@ -18,7 +18,8 @@ import rbdkit.torch as rt  # noqa: E402
 
 from framework_cases import (CONFIGURATION_CASES, ROOT, SCHEMES, central_difference, configuration_call,  # noqa: E402
                              elementwise_cases, gauss_newton_cases, Handles, import_example,
-                             import_without, rel, states, tangent_difference, to_tangent_gradient)
+                             import_without, registry_cases, rel, states, tangent_difference,
+                             to_tangent_gradient)
 
 handle = Handles(lambda model, dtype: rt.Handle(model, dtype=dtype, threads=1))
 
@@ -53,19 +54,13 @@ def test_values_equal_the_numpy_handle(name, floating, dtype):
 def test_every_registered_operation_equals_the_numpy_handle(dtype):
     # the whole registry on a floating base, batched and one sample (test_handle's arguments for each
     # operation): the same outputs bit for bit, shapes and dtypes included
-    from test_handle import REGISTERED, call, one_sample, values
-    m = rbdkit.robots.load("hyq", floating_base=True)
-    hn, ht = rbdkit.Handle(m, threads=1, dtype=dtype), rt.Handle(m, threads=1, dtype=dtype)
-    for op in REGISTERED:
-        for v in (values(m, 3), one_sample(values(m, 3))):
-            v = {k: x.astype(dtype) if isinstance(x, np.ndarray) else x for k, x in v.items()}
-            want = as_list(call(hn, op, v))
-            got = as_list(call(ht, op, {k: torch.from_numpy(x) if isinstance(x, np.ndarray) else x
-                                        for k, x in v.items()}))
-            assert len(got) == len(want), op
-            for g, w in zip(got, want):
-                assert g.dtype == getattr(torch, dtype) and g.shape == w.shape, op
-                np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
+    ht = rt.Handle(rbdkit.robots.load("hyq", floating_base=True), threads=1, dtype=dtype)
+    for op, call, v, want in registry_cases(dtype):
+        got = call(ht, {k: torch.from_numpy(x) if isinstance(x, np.ndarray) else x for k, x in v.items()})
+        assert len(got) == len(want), op
+        for g, w in zip(got, want):
+            assert g.dtype == getattr(torch, dtype) and g.shape == w.shape, op
+            np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
 
 
 def as_list(r):
