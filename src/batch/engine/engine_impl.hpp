@@ -203,7 +203,7 @@ template <typename T, typename Op> struct Job {
   HomeRange* ranges = nullptr;           // (active): thread t's share of the packs, e->ranges
 
   static void call(void* self, int t) { static_cast<Job*>(self)->work(t); }
-  // thread t's shares: packs [t·packs/active, (t+1)·packs/active), the same from call to call, so that
+  // thread t's share: packs [t·packs/active, (t+1)·packs/active), the same from call to call, so that
   // repeated calls on the same arrays find each thread's inputs and outputs in its own core's cache
   void share(int t) {
     ranges[t].next.store(t * packs / active, std::memory_order_relaxed);
