@@ -113,6 +113,13 @@ def test_eager_fast_path_and_its_fallbacks_agree():
     x, x_des, w = rng.standard_normal(h.nq + h.nv), rng.standard_normal(h.nq + h.nv), rng.uniform(0.5, 2, h.nq + h.nv)
     c = h.quadratic_state_cost(*(torch.tensor(a) for a in (x, x_des, w)))[0]  # (value, gradient, Hessian)
     assert c.shape == () and c.item() == h.numpy.quadratic_state_cost(x, x_des, w)[0]
+    # CPU tensors' outputs are made on the CPU whatever torch's default device (the engine writes them)
+    with torch.device("meta"):
+        out = h.inverse_dynamics(tq, tqd, tu)
+        tg = tu.clone().requires_grad_()
+        h.forward_dynamics(tq, tqd, tg).sum().backward()
+    assert out.device.type == "cpu" and tg.grad.device.type == "cpu"
+    np.testing.assert_array_equal(out.numpy(), want)
     # under torch.no_grad a tensor that requires grad takes the fast path, and its result has no graph
     with torch.no_grad():
         out = h.inverse_dynamics(tq.clone().requires_grad_(), tqd, tu)
