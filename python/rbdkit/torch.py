@@ -58,9 +58,9 @@ except ImportError as e:  # an optional dependency
 from . import _core
 from ._frameworks import (CONFIGURATION_RULES, ELEMENTWISE_RULES, GAUSS_NEWTON_RULES, add_operation_methods,
                           call_keywords, configuration_jacobians, elementwise_arguments,
-                          elementwise_vjp, gauss_newton_value_vjp, gravity_alias, half_q,
+                          elementwise_vjp, gauss_newton_value_vjp, gravity_alias,
                           inverse_dynamics_with_parameters, mujoco_coordinates, mujoco_maps, one_dof_coordinates,
-                          quaternion_joints, regressor_jacobians, rotation, step_with_forces, transpose_jacobians,
+                          quaternion_joints, regressor_jacobians, step_with_forces, transpose_jacobians,
                           with_derivative_algorithms)
 from ._handle import Handle as _NumpyHandle
 
@@ -464,9 +464,15 @@ def _check_differentiable(h, op, kw):
 
 # ---------------------------------------------------------------- the coordinates' maps
 
+def _cross(a, b):
+    """a × b over broadcast leading axes (torch.linalg.cross needs equal ranks)"""
+    return torch.linalg.cross(*torch.broadcast_tensors(a, b))
+
+
 def _tangent_map(h, q, x, kind, mujoco=False):
     """"pinv_T": E⁺ᵀ x (nv -> nq), "from_tangent": E x (nv -> nq), "transpose": Eᵀ x (nq -> nv);
-    mujoco: MuJoCo's coordinates and ⊕ (rbdkit.jax's _tangent_map)"""
+    mujoco: MuJoCo's coordinates and ⊕ (rbdkit.jax's _tangent_map). A quaternion joint's blocks are
+    applied as quaternion products (a few batched operations each, no matrix formed)"""
     if h._identity_map:  # every joint's coordinates are its tangent
         return x if q.shape[:-1] == x.shape[:-1] else x.expand(torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
                                                                 + x.shape[-1:])
@@ -476,29 +482,34 @@ def _tangent_map(h, q, x, kind, mujoco=False):
     if len(h._vi):
         src, dst = (h._vi, h._qi) if to_q else (h._qi, h._vi)
         out[..., dst] = x[..., src].expand(tuple(batch) + (len(src),))
-    T = lambda A, y: torch.einsum("...ji,...j->...i", A, y)  # noqa: E731
-    N = lambda A, y: torch.einsum("...ij,...j->...i", A, y)  # noqa: E731
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq
-        Q = half_q(torch, q[..., qq:qq + 4], w_first=mujoco)
+        quat = q[..., qq:qq + 4]
+        v, w = (quat[..., 1:], quat[..., :1]) if mujoco else (quat[..., :3], quat[..., 3:])  # vector and scalar parts
         ivr = iv + 3 if joint == "free" else iv
         if joint == "free" and mujoco:  # the position, additive in the world: E = I
             if to_q:
                 out[..., iq:iq + 3] = x[..., iv:iv + 3]
             else:
                 out[..., iv:iv + 3] = x[..., iq:iq + 3]
-        elif joint == "free":
-            R = rotation(torch, q[..., qq:qq + 4])
+        elif joint == "free":  # the position's rows: R(quat) (R x = x + w t + v × t, t = 2 v × x), or Rᵀ
+            p = x[..., iv:iv + 3] if to_q else x[..., iq:iq + 3]
+            t = 2 * _cross(v, p)
+            rotated = p + (w if to_q else -w) * t + _cross(v, t)
             if to_q:
-                out[..., iq:iq + 3] = N(R, x[..., iv:iv + 3])
+                out[..., iq:iq + 3] = rotated
             else:
-                out[..., iv:iv + 3] = T(R, x[..., iq:iq + 3])
-        if kind == "pinv_T":  # E⁺ = 4 (Q/2)ᵀ for a unit quaternion: E⁺ᵀ = 4 (Q/2)
-            out[..., qq:qq + 4] = 4 * N(Q, x[..., ivr:ivr + 3])
-        elif kind == "from_tangent":
-            out[..., qq:qq + 4] = N(Q, x[..., ivr:ivr + 3])
-        else:
-            out[..., ivr:ivr + 3] = T(Q, x[..., qq:qq + 4])
+                out[..., iv:iv + 3] = rotated
+        if to_q:  # Q δ = ½ (w δ + v × δ, -v·δ) (vector part, scalar part), times 4 for E⁺ᵀ
+            d = x[..., ivr:ivr + 3]
+            scale = 2.0 if kind == "pinv_T" else 0.5
+            vec = scale * (w * d + _cross(v, d))
+            sca = -scale * (v * d).sum(-1, keepdim=True)
+            out[..., qq:qq + 4] = torch.cat([sca, vec] if mujoco else [vec, sca], -1)
+        else:  # Qᵀ y = ½ (w y_v - v × y_v - y_w v)
+            y = x[..., qq:qq + 4]
+            yv, yw = (y[..., 1:], y[..., :1]) if mujoco else (y[..., :3], y[..., 3:])
+            out[..., ivr:ivr + 3] = 0.5 * (w * yv - _cross(v, yv) - yw * v)
     return out
 
 
