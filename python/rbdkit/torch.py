@@ -246,6 +246,8 @@ class Handle:
         self._quats = quaternion_joints(self.model)
         self._vi, self._qi = one_dof_coordinates(self.model)  # lists: constants under torch.compile
         self._identity_map = not self._quats and self.nq == self.nv and self._vi == self._qi == list(range(self.nv))
+        # the one-DoF coordinates as two slices where each side is one run (a floating base's: v[6:], q[7:])
+        self._one_dof_slices = (_run(self._vi), _run(self._qi)) if _run(self._vi) and _run(self._qi) else None
         self._plans = {}  # (op, parameters, arrays present) -> the call's layout (_eager)
         _HANDLES[self._address] = self
 
@@ -464,6 +466,12 @@ def _check_differentiable(h, op, kw):
 
 # ---------------------------------------------------------------- the coordinates' maps
 
+def _run(indices):
+    """slice(i, i + n) when indices are i, i + 1, ..., i + n - 1 (n > 0), else None"""
+    return slice(indices[0], indices[0] + len(indices)) if indices and list(indices) == list(
+        range(indices[0], indices[0] + len(indices))) else None
+
+
 def _cross(a, b):
     """a × b over broadcast leading axes (torch.linalg.cross needs equal ranks)"""
     return torch.linalg.cross(*torch.broadcast_tensors(a, b))
@@ -481,7 +489,9 @@ def _tangent_map(h, q, x, kind, mujoco=False):
     out = x.new_zeros(tuple(batch) + ((h.nq,) if to_q else (h.nv,)))
     if len(h._vi):
         src, dst = (h._vi, h._qi) if to_q else (h._qi, h._vi)
-        out[..., dst] = x[..., src].expand(tuple(batch) + (len(src),))
+        if h._one_dof_slices:  # (a slice each side: a view and a copy, not an index tensor per call)
+            src, dst = h._one_dof_slices[::1 if to_q else -1]
+        out[..., dst] = x[..., src].expand(tuple(batch) + (len(h._vi),))
     for joint, iq, iv in h._quats:
         qq = iq + 3 if joint == "free" else iq
         quat = q[..., qq:qq + 4]
