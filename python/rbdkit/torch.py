@@ -246,8 +246,10 @@ class Handle:
         self._quats = quaternion_joints(self.model)
         self._vi, self._qi = one_dof_coordinates(self.model)  # lists: constants under torch.compile
         self._identity_map = not self._quats and self.nq == self.nv and self._vi == self._qi == list(range(self.nv))
-        # the one-DoF coordinates as two slices where each side is one run (a floating base's: v[6:], q[7:])
-        self._one_dof_slices = (_run(self._vi), _run(self._qi)) if _run(self._vi) and _run(self._qi) else None
+        # the one-DoF coordinates as two slices where each side is one run (a floating base followed by
+        # one-DoF joints: v[6:], q[7:])
+        runs = (_run(self._vi), _run(self._qi))
+        self._one_dof_slices = runs if all(runs) else None
         self._plans = {}  # (op, parameters, arrays present) -> the call's layout (_eager)
         _HANDLES[self._address] = self
 
@@ -484,6 +486,8 @@ def _tangent_map(h, q, x, kind, mujoco=False):
     if h._identity_map:  # every joint's coordinates are its tangent
         return x if q.shape[:-1] == x.shape[:-1] else x.expand(torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
                                                                 + x.shape[-1:])
+    if kind not in ("pinv_T", "from_tangent", "transpose"):
+        raise ValueError(f"_tangent_map: kind: expected 'pinv_T', 'from_tangent' or 'transpose', got {kind!r}")
     to_q = kind in ("pinv_T", "from_tangent")
     batch = torch.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     out = x.new_zeros(tuple(batch) + ((h.nq,) if to_q else (h.nv,)))

@@ -63,10 +63,6 @@ def test_every_registered_operation_equals_the_numpy_handle(dtype):
             np.testing.assert_array_equal(g.numpy(), w, err_msg=op)
 
 
-def as_list(r):
-    return list(r) if isinstance(r, tuple) else [r]
-
-
 def test_leading_batch_shapes_and_broadcasting():
     h = handle("hyq", True)
     q, qd, u = states(h, 6)
@@ -195,6 +191,35 @@ def test_gradients_of_some_inputs_only(name, floating, convention):
                                                err_msg=f"{op} {need} {k}")
                 else:
                     assert xs[k].grad is None
+
+
+@pytest.mark.parametrize("name,floating", [("hyq", True), ("spherical", False), ("spherical", True)])
+@pytest.mark.parametrize("mujoco", [False, True])
+def test_tangent_maps_against_central_differences(name, floating, mujoco):
+    # the rules' maps between tangents and coordinates (rt._tangent_map), in both conventions, against E,
+    # the derivative of ⊕ at zero by central differences: E x, Eᵀ y, and E⁺ᵀ x, which has no component
+    # along a quaternion (E⁺ E = I); on batches of unequal rank (q batched, x one sample, and the reverse)
+    h = handle(name, floating)
+    rbd = h.numpy.rbd
+    q = states(h, 3, seed=9)[0]
+    if mujoco:
+        q = np.stack([h.numpy.state_to_mujoco(np.concatenate([a, np.zeros(h.nv)]))[:h.nq] for a in q])
+    plus = (lambda q, d: h.numpy.mujoco_integrate(q, d)) if mujoco else rbd.integrate  # noqa: E731
+    E = np.stack([central_difference(lambda d: plus(a, d), np.zeros(h.nv)) for a in q])  # (3, nq, nv)
+    rng = np.random.default_rng(10)
+    x, y = rng.standard_normal((3, h.nv)), rng.standard_normal((3, h.nq))
+    tq = torch.tensor(q)
+    for xs, qs, Es in ((x, tq, E), (x[0], tq, E), (x, tq[0], E[:1])):
+        ex = rt._tangent_map(h, qs, torch.tensor(xs), "from_tangent", mujoco).numpy()
+        assert rel(ex, np.einsum("bij,...j->bi", Es, xs) if xs.ndim == 1 else np.einsum("bij,bj->bi", Es, xs)) < 1e-8
+        pt = rt._tangent_map(h, qs, torch.tensor(xs), "pinv_T", mujoco).numpy()
+        Ep = np.linalg.pinv(Es)  # (b, nv, nq)
+        want = np.einsum("bji,...j->bi", Ep, xs) if xs.ndim == 1 else np.einsum("bji,bj->bi", Ep, xs)
+        assert rel(pt, want) < 1e-7
+    et = rt._tangent_map(h, tq, torch.tensor(y), "transpose", mujoco).numpy()
+    assert rel(et, np.einsum("bji,bj->bi", E, y)) < 1e-8
+    with pytest.raises(ValueError, match="kind"):
+        rt._tangent_map(h, tq, torch.tensor(x), "pinv_t")
 
 
 @pytest.mark.parametrize("name,floating", [("hyq", True), ("atlas", True), ("spherical", False)])
