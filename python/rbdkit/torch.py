@@ -174,24 +174,18 @@ class _EagerCall(torch.autograd.Function):
         return (None, *_backward(ctx, grads)[0])
 
 
-class _RawCall(torch.autograd.Function):
+class _RawCall(_EagerCall):
     """Handle._eager's call (a cached RawCall on the tensors' memory) recorded for autograd: the eager
-    path's few µs instead of the general path's argument handling; the same backward formulas"""
+    path's few µs instead of the general path's argument handling; _EagerCall's context and backward"""
 
     @staticmethod
     def forward(ctx, meta, *xs):
-        h, raw, out_shapes, lead, device, on_device, backward = meta
+        h, raw, out_shapes, lead, device, on_device, (op_id, slots, params) = meta
         res = [torch.empty(lead + tuple(s), dtype=h.dtype, device=device or _CPU) for s in out_shapes]
         args = ([x.data_ptr() for x in xs] + [r.data_ptr() for r in res], math.prod(lead) if lead else -1)
         raw(*args) if device is None else raw(*args, on_device)
-        ctx.set_materialize_grads(False)
-        ctx.save_for_backward(*xs, *res)
-        ctx.n_in, ctx.call, ctx.handle, ctx.rest = len(xs), backward, h, []
+        _setup_context(ctx, (list(xs), h._address, op_id, slots, params), res)
         return tuple(res)
-
-    @staticmethod
-    def backward(ctx, *grads):
-        return (None, *_backward(ctx, grads)[0])
 
 
 @torch._dynamo.assume_constant_result
@@ -470,8 +464,8 @@ def _check_differentiable(h, op, kw):
 
 def _run(indices):
     """slice(i, i + n) when indices are i, i + 1, ..., i + n - 1 (n > 0), else None"""
-    return slice(indices[0], indices[0] + len(indices)) if indices and list(indices) == list(
-        range(indices[0], indices[0] + len(indices))) else None
+    n = len(indices)
+    return slice(indices[0], indices[0] + n) if n and list(indices) == list(range(indices[0], indices[0] + n)) else None
 
 
 def _cross(a, b):
@@ -501,19 +495,14 @@ def _tangent_map(h, q, x, kind, mujoco=False):
         quat = q[..., qq:qq + 4]
         v, w = (quat[..., 1:], quat[..., :1]) if mujoco else (quat[..., :3], quat[..., 3:])  # vector and scalar parts
         ivr = iv + 3 if joint == "free" else iv
-        if joint == "free" and mujoco:  # the position, additive in the world: E = I
-            if to_q:
-                out[..., iq:iq + 3] = x[..., iv:iv + 3]
-            else:
-                out[..., iv:iv + 3] = x[..., iq:iq + 3]
-        elif joint == "free":  # the position's rows: R(quat) (R x = x + w t + v × t, t = 2 v × x), or Rᵀ
-            p = x[..., iv:iv + 3] if to_q else x[..., iq:iq + 3]
-            t = 2 * _cross(v, p)
-            rotated = p + (w if to_q else -w) * t + _cross(v, t)
-            if to_q:
-                out[..., iq:iq + 3] = rotated
-            else:
-                out[..., iv:iv + 3] = rotated
+        if joint == "free":  # the position's rows: R(quat) or Rᵀ (R x = x + w t + v × t, t = 2 v × x);
+            # MuJoCo's, additive in the world: E = I
+            src, dst = (slice(iv, iv + 3), slice(iq, iq + 3)) if to_q else (slice(iq, iq + 3), slice(iv, iv + 3))
+            p = x[..., src]
+            if not mujoco:
+                t = 2 * _cross(v, p)
+                p = p + (w if to_q else -w) * t + _cross(v, t)
+            out[..., dst] = p
         if to_q:  # Q δ = ½ (w δ + v × δ, -v·δ) (vector part, scalar part), times 4 for E⁺ᵀ
             d = x[..., ivr:ivr + 3]
             scale = 2.0 if kind == "pinv_T" else 0.5
