@@ -13,12 +13,17 @@ and scratch) forced into global memory and into the block's shared memory
 (RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits and the
 batch runs in at most three waves there; docs/cuda.md).
 
+With --kernels: two more resident columns, the operations that have a team
+kernel (∇ID, ∇FD: a block of threads per sample) forced to the sample-per-
+thread kernel and to the team kernel (RBDKIT_CUDA_KERNEL; the default, "auto",
+picks the team kernel; docs/cuda.md, "Team kernels"); "-" for the others.
+
 With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
 N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:
 rk4 step gradients, state, input and end-effector costs), on the GPU
 (resident) against the CPU engine (issue 17, point 3).
 
-    python3 bench/gpu.py [--quick] [--work-memory] [--ilqr] [--out table.md]
+    python3 bench/gpu.py [--quick] [--work-memory] [--kernels] [--ilqr] [--out table.md]
 
 In interpret mode (RBDKIT_CUDA_INTERPRET=1, no GPU) the same runs, slowly:
 a smoke test of the script, not a measurement.
@@ -40,6 +45,8 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("∇ID", "inverse_dynamics_gradient"), ("∇FD", "forward_dynamics_gradient"),
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
+# the operations with a team kernel (src/cuda/team_kernels.cuh; --kernels)
+TEAM_OPS = ("inverse_dynamics_gradient", "forward_dynamics_gradient")
 
 
 def device_module(choice="any"):
@@ -98,17 +105,17 @@ def nbytes(result):
     return sum(np.asarray(r).nbytes for r in result) if isinstance(result, tuple) else np.asarray(result).nbytes
 
 
-def cuda_handle(model, dtype, work):
-    """a CUDA handle made with RBDKIT_CUDA_WORK=work (the caller's value restored after)"""
-    before = os.environ.get("RBDKIT_CUDA_WORK")
-    os.environ["RBDKIT_CUDA_WORK"] = work
+def cuda_handle(model, dtype, var, value):
+    """a CUDA handle made with the environment variable var=value (the caller's value restored after)"""
+    before = os.environ.get(var)
+    os.environ[var] = value
     try:
         return rbdkit.Handle(model, backend="cuda", dtype=dtype)
     finally:
         if before is None:
-            del os.environ["RBDKIT_CUDA_WORK"]
+            del os.environ[var]
         else:
-            os.environ["RBDKIT_CUDA_WORK"] = before
+            os.environ[var] = before
 
 
 def ilqr_table(out, dev, budget, K=64, N=100):
@@ -159,6 +166,8 @@ def main():
     ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
                     help="the device arrays of the resident column")
+    ap.add_argument("--kernels", action="store_true",
+                    help="two more resident columns: the sample-per-thread and the team kernel, where an op has both")
     ap.add_argument("--work-memory", action="store_true",
                     help="also time the resident call with the work in global and in shared memory")
     ap.add_argument("--ilqr", action="store_true",
@@ -195,17 +204,21 @@ def main():
         for dtype in ("float32", "float64"):
             cu = rbdkit.Handle(model, backend="cuda", dtype=dtype)
             cpu = rbdkit.Handle(model, backend="cpu", dtype=dtype)
-            forced = {}  # --work-memory: handles with the work forced into one memory
+            forced = {}  # --work-memory, --kernels: handles with the work memory or the kernel forced
             for where in ("global", "shared") if a.work_memory and dev else ():
-                forced[where] = cuda_handle(model, dtype, where)
+                forced[where] = cuda_handle(model, dtype, "RBDKIT_CUDA_WORK", where)
+            for kernel in ("sample", "team") if a.kernels and dev else ():
+                forced[kernel] = cuda_handle(model, dtype, "RBDKIT_CUDA_KERNEL", kernel)
             if gpu is None:
                 gpu = cu.device
                 out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
                     f"(CPU engine: {cpu.threads} threads; device arrays: {dev[0] if dev else 'none'})")
                 out()
-                extra = " global | shared |" if a.work_memory else ""
-                out(f"| robot | dtype | op | B | resident | host | cpu | cpu / resident |{extra}")
-                out("|---|---|---|---:|---:|---:|---:|---:|" + ("---:|---:|" if a.work_memory else ""))
+                extra = [c for c, on in (("global", a.work_memory), ("shared", a.work_memory),
+                                         ("sample kernel", a.kernels), ("team kernel", a.kernels)) if on]
+                out("| robot | dtype | op | B | resident | host | cpu | cpu / resident |" +
+                    "".join(f" {c} |" for c in extra))
+                out("|---|---|---|---:|---:|---:|---:|---:|" + "---:|" * len(extra))
             for label, op in ops:
                 args1, kw1 = arguments(cpu, op, 1, np.random.default_rng(0))
                 per_sample = nbytes(getattr(cpu, op)(*args1, **kw1)) + sum(x.nbytes for x in args1)
@@ -213,7 +226,7 @@ def main():
                     name = robot + ("_floating" if floating else "")
                     if per_sample * B > a.max_gb * 1e9:
                         out(f"| {name} | {dtype} | {label} | {B} | - | - | - | over --max-gb "
-                            f"({per_sample * B / 1e9:.1f} GB) |" + (" - | - |" if a.work_memory else ""))
+                            f"({per_sample * B / 1e9:.1f} GB) |" + " - |" * len(extra))
                         continue
                     rng = np.random.default_rng(0)
                     args, kw = arguments(cu, op, B, rng)
@@ -225,13 +238,16 @@ def main():
                         res = per_call(getattr(cu, op), dargs, kw, dev[2], a.budget) / B * 1e6
                     cols = ""
                     for where, h in forced.items():
+                        if where in ("sample", "team") and op not in TEAM_OPS:
+                            cols += " - |"  # (no team kernel: both columns would time the same kernel)
+                            continue
                         try:
                             t = per_call(getattr(h, op), dargs, kw, dev[2], a.budget) / B * 1e6
                             cols += f" {t:.3f} |"
                         except ValueError:  # a sample's work exceeds a block's shared memory
                             cols += " - |"
-                    if a.work_memory and not forced:
-                        cols = " - | - |"
+                    if extra and not forced:
+                        cols = " - |" * len(extra)
                     out(f"| {name} | {dtype} | {label} | {B} | {'-' if res is None else f'{res:.3f}'} | "
                         f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |{cols}")
     if a.ilqr or a.only_ilqr:

@@ -54,6 +54,11 @@ fi
 step "C++ CUDA tests on the device" env RBDKIT_TEST_CUDA_DEVICE=1 build/gpu/tests/cpp/rbdkit_tests \
   --gtest_filter='*Cuda*'
 step "C++ kernel check (cuda/kernel_check.cu)" build/gpu/cuda_kernel_check robots
+# one thread's cycles per pass of the per-sample maths (issue 17's profile); its table is printed at the end
+if [[ -x build/gpu/cuda_stage_latency ]]; then
+  step "one thread's cycles per pass (cuda/stage_latency.cu)" bash -c \
+    "build/gpu/cuda_stage_latency robots > build/gpu/stage_latency.md"
+fi
 
 # ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global and shared
 # memory, launch errors); racecheck (shared-memory races: each thread's work slice must not overlap
@@ -100,5 +105,6 @@ echo
 echo "| step | result |"
 echo "|---|---|"
 printf '%s\n' "${summary[@]}"
+[[ -f build/gpu/stage_latency.md ]] && { echo; cat build/gpu/stage_latency.md; }
 [[ -f build/gpu/gpu_bench.md ]] && { echo; cat build/gpu/gpu_bench.md; }
 exit $status

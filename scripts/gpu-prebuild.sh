@@ -14,7 +14,7 @@
 # On the GPU machine, with these copied beside the source tree:
 #   GPU_CHECK_PREBUILT=1 scripts/gpu-check.sh [bench/gpu.py's options]
 # The paths to copy (the `device` tool's carry; about 45 MB): .gpu build/gpu/CMakeCache.txt
-#   build/gpu/cuda_kernel_check build/gpu/tests/cpp/rbdkit_tests
+#   build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency build/gpu/tests/cpp/rbdkit_tests
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${1:-python3}
@@ -33,4 +33,4 @@ PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip wheel -q --
   -w .gpu/wheel . -Cbuild-dir=build/gpu-py -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/gpu/librbdkit.a"
 lib=$(ldd build/gpu/tests/cpp/rbdkit_tests | awk '/libtinyxml2/ {print $3}')
 [[ -z "$lib" ]] || cp -L "$lib" .gpu/lib/  # (none to copy where tinyxml2 is linked statically)
-du -sh .gpu build/gpu/cuda_kernel_check build/gpu/tests/cpp/rbdkit_tests
+du -sh .gpu build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency build/gpu/tests/cpp/rbdkit_tests

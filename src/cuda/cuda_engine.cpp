@@ -46,6 +46,17 @@ LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkM
   return {blocks, static_cast<int>(threads), shared ? work_bytes * threads : 0ul, d.shared_bytes};
 }
 
+// A team kernel's launch (team_kernels.cuh): a block of kTeam threads per sample, its work slice in
+// the block's shared memory under the same three-waves rule (a block per slice that fits, at most
+// 32 blocks per SM), else in global memory; at most kMaxBlocks blocks (then the grid strides)
+LaunchShape team_launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode) {
+  const long sms = d.multiprocessors > 0 ? d.multiprocessors : 1;
+  const long fit = work_bytes ? static_cast<long>(d.shared_bytes / work_bytes) : 0;
+  const bool shared = mode == kWorkShared || (mode == kWorkAuto && fit >= 1 && B <= 3 * sms * std::min(fit, 32L));
+  const long blocks = std::min(std::max(B, 1L), kMaxBlocks);
+  return {blocks, kTeam, shared ? work_bytes : 0ul, d.shared_bytes, 1};
+}
+
 }  // namespace cuda
 
 namespace {
@@ -85,6 +96,8 @@ struct CudaEngine::Impl {
   Buffer bodies, work, status, io, flag;
   unsigned long max_work_bytes = kMaxWorkBytes;
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
+  std::string kernel = "auto";  // set_kernel
+  std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample, 0: none
   cuda::DeviceLimits limits{};
   std::mutex call;
   std::vector<int> status_host;
@@ -101,6 +114,10 @@ struct CudaEngine::Impl {
     limits = dev->limits();
     try {
       work_memory = work_memory_from_env();
+      if (const char* k = std::getenv("RBDKIT_CUDA_KERNEL"); k && *k) kernel = checked_kernel(k, "RBDKIT_CUDA_KERNEL");
+      team_extra.assign(ops::op_table().size(), 0);
+      if (d == "float64") cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data());
+      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data());
       failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
       // the model's bodies in the engine's scalar, uploaded once; the failure flag, cleared once
       if (d == "float64") upload_bodies(model.bodies_as<double>());
@@ -131,6 +148,13 @@ struct CudaEngine::Impl {
                          bool device_arrays, size_t value_bytes);
   template <typename T> [[noreturn]] void fail_inputs(const ops::OpSpec& op, const ops::OpCall& c,
                                                       const std::vector<long>& samples);
+  // the team kernel where the op has one, on a model without mimic joints (team_kernels.cuh)
+  bool uses_team(int op) const { return team_extra[op] && !model.has_mimic() && kernel != "sample"; }
+  static std::string checked_kernel(const std::string& k, const char* what) {
+    if (k != "auto" && k != "team" && k != "sample")
+      throw std::invalid_argument(std::string(what) + ": expected 'auto', 'team' or 'sample', got '" + k + "'");
+    return k;
+  }
   static cuda::WorkMemory work_memory_from_env() {
     const char* v = std::getenv("RBDKIT_CUDA_WORK");
     if (!v || !*v || std::strcmp(v, "auto") == 0) return cuda::kWorkAuto;
@@ -149,7 +173,13 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   dc.model = {m.nb(), m.nq, m.nv, m.has_mimic() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
   dc.layout = ops::workspace_layout(op, m);
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
-  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + sizeof(T) * ops::scratch_values(op, m)));
+  const bool team = uses_team(op_id);
+  const unsigned long scratch_bytes = sizeof(T) * ops::scratch_values(op, m);
+  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? std::max(scratch_bytes, team_extra[op_id]) : scratch_bytes)));
+  auto shape_of = [&](long n, cuda::WorkMemory where) {
+    return team ? cuda::team_launch_shape(n, dc.work_bytes, limits, where)
+                : cuda::launch_shape(n, dc.work_bytes, limits, where);
+  };
   dc.n_ee = c.n_ee;
   dc.check_inputs = device_arrays ? 1 : 0;  // (host arrays were checked on the host)
 
@@ -211,7 +241,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
 
   // the launches: the work in shared memory (one launch), or over chunks of samples whose global work
   // buffer fits max_work_bytes
-  const cuda::LaunchShape whole = cuda::launch_shape(B, dc.work_bytes, limits, work_memory);
+  const cuda::LaunchShape whole = shape_of(B, work_memory);
   if (whole.shared_bytes > limits.shared_bytes)
     throw std::invalid_argument(std::string(op.name) + ": work memory 'shared': a sample's work (" +
                                 std::to_string(dc.work_bytes) + " bytes) exceeds a block's shared memory (" +
@@ -233,7 +263,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     for (int o = 0; o < op.n_out; ++o)
       if (part.out[o]) part.out[o] += s0 * out_values[o];
     part.status = status_d + s0;
-    dev->launch(op_id, part, part.B == B ? whole : cuda::launch_shape(part.B, dc.work_bytes, limits, cuda::kWorkGlobal),
+    dev->launch(op_id, part, part.B == B ? whole : shape_of(part.B, cuda::kWorkGlobal),
                 stream);  // (a chunk: global memory, as the whole call)
   }
   // the flag (one int, to pinned memory), the outputs of host arrays; the statuses only when the flag says
@@ -369,6 +399,21 @@ std::string CudaEngine::work_memory() const {
   std::lock_guard<std::mutex> lk(impl_->call);
   const cuda::WorkMemory w = impl_->work_memory;
   return w == cuda::kWorkGlobal ? "global" : w == cuda::kWorkShared ? "shared" : "auto";
+}
+void CudaEngine::set_kernel(const std::string& which) {
+  const std::string k = Impl::checked_kernel(which, "kernel");
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->kernel = k;
+}
+std::string CudaEngine::kernel() const {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  return impl_->kernel;
+}
+std::string CudaEngine::kernel_for(int op) const {
+  if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
+    throw std::invalid_argument("kernel_for: unknown operation id " + std::to_string(op));
+  std::lock_guard<std::mutex> lk(impl_->call);
+  return impl_->uses_team(op) ? "team" : "sample";
 }
 unsigned long CudaEngine::device_bytes() const {
   return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes + impl_->flag.bytes;

@@ -10,7 +10,7 @@
 #include <memory>
 #include <string>
 
-#include "kernels.cuh"
+#include "team_kernels.cuh"
 
 namespace rbd {
 namespace cuda {
@@ -42,6 +42,8 @@ struct Device {
 
 // the launch of B samples of `work_bytes` each on a device (src/cuda/cuda_engine.cpp)
 LaunchShape launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode);
+// the same for a team kernel (team_kernels.cuh): a block per sample
+LaunchShape team_launch_shape(long B, unsigned long work_bytes, DeviceLimits d, WorkMemory mode);
 
 std::unique_ptr<Device> make_interpret_device();
 // the CUDA runtime's device 0; throws std::runtime_error naming what is missing

@@ -13,18 +13,28 @@
 namespace rbd {
 namespace cuda {
 
+// a kernel's dynamic shared memory past the default 48 kB must be allowed, per kernel and device:
+// always to the device's maximum, so that engines on other threads never lower it
+template <typename K> void allow_shared(K kernel, LaunchShape shape) {
+  if (shape.shared_bytes <= 48 * 1024) return;
+  const cudaError_t e =
+      cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, static_cast<int>(shape.shared_limit));
+  if (e != cudaSuccess)
+    throw std::runtime_error(std::string("backend='cuda': allowing ") + std::to_string(shape.shared_bytes) +
+                             " bytes of shared memory per block: " + cudaGetErrorString(e));
+}
+
 template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
-  if (shape.shared_bytes > 48 * 1024) {
-    // past the default 48 kB, a kernel's dynamic shared memory must be allowed, per kernel and
-    // device: always to the device's maximum, so that engines on other threads never lower it
-    const cudaError_t e = cudaFuncSetAttribute(op_kernel<Op, T>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                               static_cast<int>(shape.shared_limit));
-    if (e != cudaSuccess)
-      throw std::runtime_error(std::string("backend='cuda': allowing ") + std::to_string(shape.shared_bytes) +
-                               " bytes of shared memory per block: " + cudaGetErrorString(e));
+  const dim3 grid(static_cast<unsigned>(shape.blocks)), block(shape.threads);
+  if constexpr (TeamOp<Op>::available) {
+    if (shape.team) {  // (the engine asks for a team only where Op has one)
+      allow_shared(team_kernel<Op, T>, shape);
+      team_kernel<Op, T><<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
+      return;
+    }
   }
-  op_kernel<Op, T><<<static_cast<unsigned>(shape.blocks), shape.threads, shape.shared_bytes,
-                     static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
+  allow_shared(op_kernel<Op, T>, shape);
+  op_kernel<Op, T><<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
 }
 
 template <typename T, typename... Op> const Launcher<T>* device_table(ops::OpList<Op...>) {

@@ -9,7 +9,8 @@ namespace rbd {
 namespace cuda {
 
 template <typename Op, typename T> void interpret_launch(const DeviceCall<T>& c, LaunchShape shape, void*) {
-  interpret_op<Op>(c, shape);
+  if (shape.team) interpret_team_op<Op>(c, shape);  // (the engine asks for a team only where Op has one)
+  else interpret_op<Op>(c, shape);
 }
 
 template <typename T, typename... Op> const Launcher<T>* interpret_table(ops::OpList<Op...>) {

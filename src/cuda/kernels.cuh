@@ -121,6 +121,22 @@ template <typename Op, typename T> RBD_HD bool inputs_ok(const DeviceCall<T>& c,
   return args_ok<Op>(c, m, s, std::make_integer_sequence<int, Op::spec.n_args>{});
 }
 
+// sample s's arguments: its rows of the arrays, the call's reals and choices, the scratch after the
+// workspace in its work slice
+template <typename T> RBD_HD ops::OpArgs<T> sample_args(const DeviceCall<T>& c, long s, unsigned char* work) {
+  ops::OpArgs<T> a;
+  for (int k = 0; k < ops::kMaxArgs; ++k) {
+    a.in[k] = c.in[k] ? c.in[k] + s * c.in_stride[k] : nullptr;
+    a.real[k] = c.real[k];
+    a.choice[k] = c.choice[k];
+  }
+  for (int o = 0; o < ops::kMaxOutputs; ++o) a.out[o] = c.out[o] ? c.out[o] + s * c.out_values[o] : nullptr;
+  a.scratch = reinterpret_cast<T*>(work + c.ws_bytes);
+  a.ee = c.ee;
+  a.n_ee = c.n_ee;
+  return a;
+}
+
 // sample s of Op on model m (c.model, its bodies as the kernel reads them)
 // in `work` (its work slice: workspace, then scratch): its arguments, the
 // kernel, its status
@@ -134,16 +150,7 @@ RBD_HD void op_sample(const DeviceCall<T>& c, const ModelView<T>& m, long s, uns
     return;
   }
   Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
-  ops::OpArgs<T> a;
-  for (int k = 0; k < ops::kMaxArgs; ++k) {
-    a.in[k] = c.in[k] ? c.in[k] + s * c.in_stride[k] : nullptr;
-    a.real[k] = c.real[k];
-    a.choice[k] = c.choice[k];
-  }
-  for (int o = 0; o < ops::kMaxOutputs; ++o) a.out[o] = c.out[o] ? c.out[o] + s * c.out_values[o] : nullptr;
-  a.scratch = reinterpret_cast<T*>(work + c.ws_bytes);
-  a.ee = c.ee;
-  a.n_ee = c.n_ee;
+  const ops::OpArgs<T> a = sample_args(c, s, work);
   int status = kSampleOk;
   if (!Op::run(m, w, a)) {
     status = kSampleFailed;
@@ -191,6 +198,7 @@ struct LaunchShape {
   int threads;
   unsigned long shared_bytes;  // per block; 0: the work slices are in global memory
   unsigned long shared_limit;  // the device's (DeviceLimits::shared_bytes): what a kernel is allowed
+  int team = 0;                // 1: the op's team kernel (team_kernels.cuh), a block of kTeam threads per sample
 };
 
 // the emulated launch (interpret mode): grid x block threads, run serially;

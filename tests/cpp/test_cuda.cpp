@@ -188,6 +188,61 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
+// the team kernels (src/cuda/team_kernels.cuh: ∇ID and ∇FD, a block of threads per sample) against
+// the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in
+// shared and in global memory, every output or some, f_ext; mimic models keep the sample kernel;
+// device arrays' values checked by the team
+TEST(Cuda, TeamKernelsEqualCpu) {
+  for (const ModelCase& mc : rbd_test::all_cases()) {
+    const Model m = Model::from_urdf_file(mc.path, mc.floating);
+    SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
+    rbd::Handle serial(m);
+    const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
+    for (const char* name : {"inverse_dynamics_gradient", "forward_dynamics_gradient"}) {
+      SCOPED_TRACE(name);
+      const int id = ops::find_op(name);
+      const ops::OpSpec& op = *ops::op_table()[id].spec;
+      EXPECT_EQ(p64->cuda()->kernel(), "auto");
+      EXPECT_EQ(p64->cuda()->kernel_for(id), m.has_mimic() ? "sample" : "team");
+      p64->cuda()->set_kernel("sample");
+      EXPECT_EQ(p64->cuda()->kernel_for(id), "sample");
+      p64->cuda()->set_kernel("auto");
+      const Inputs in = make_inputs(m, op, 5, 11, true);
+      // ∇ID: every output, dtau alone, the halves alone; ∇FD: every output, the two matrices alone
+      const std::vector<unsigned> masks = op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110}
+                                                        : std::vector<unsigned>{0b1111, 0b0011};
+      for (unsigned mask : masks) {
+        SCOPED_TRACE(mask);
+        const std::vector<double> ref = run<double>(serial, id, in, mask);
+        for (const char* where : {"shared", "global"}) {
+          p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);
+          try {
+            EXPECT_LE(max_rel_err(run<double>(*p64, id, in, mask), ref), on_device() ? 1e-8 : 1e-12) << where;
+            EXPECT_LE(max_rel_err(run<float>(*p32, id, in, mask), ref), float32_bound(op)) << where;
+          } catch (const std::invalid_argument& x) {  // (floating Atlas: a slice larger than a block's)
+            EXPECT_STREQ(where, "shared");
+            EXPECT_NE(std::string(x.what()).find("exceeds a block's shared memory"), std::string::npos) << x.what();
+          }
+        }
+        p64->cuda()->set_work_memory("auto"), p32->cuda()->set_work_memory("auto");
+      }
+      if (on_device()) continue;
+      // a device array's bad value: the team's check names it, as the host's does
+      Inputs bad = in;
+      bad.arrays[1][3 * m.nv] = NAN;
+      std::string msg;
+      try {
+        run<double>(*p64, id, bad, ~0u, true);
+      } catch (const std::invalid_argument& e) {
+        msg = e.what();
+      }
+      EXPECT_NE(msg.find("qd[3]"), std::string::npos) << msg;
+    }
+  }
+  const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
+  EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_kernel("warp"), std::invalid_argument);
+}
+
 // a batch large enough that blocks hold several samples' work in shared memory on any device (on an
 // H100, 600 samples are 5 per block, as many as fit in interpret mode; scripts/gpu-check.sh runs this under compute-sanitizer's racecheck)
 TEST(Cuda, SharedBlocksOfManySamples) {
@@ -204,6 +259,23 @@ TEST(Cuda, SharedBlocksOfManySamples) {
 }
 
 // the launch shapes on an H100 (132 SMs, 227 kB of shared memory per block)
+TEST(Cuda, TeamLaunchShapes) {
+  using rbd::cuda::team_launch_shape;
+  const rbd::cuda::DeviceLimits h100{132, 227ul * 1024};
+  // a block of kTeam threads per sample; a 40 kB slice: 5 fit an SM, shared memory up to three waves
+  auto s = team_launch_shape(256, 40000, h100, rbd::cuda::kWorkAuto);
+  EXPECT_EQ(s.team, 1);
+  EXPECT_EQ(s.threads, rbd::cuda::kTeam);
+  EXPECT_EQ(s.blocks, 256);
+  EXPECT_EQ(s.shared_bytes, 40000ul);
+  EXPECT_EQ(team_launch_shape(3 * 132 * 5, 40000, h100, rbd::cuda::kWorkAuto).shared_bytes, 40000ul);
+  EXPECT_EQ(team_launch_shape(3 * 132 * 5 + 1, 40000, h100, rbd::cuda::kWorkAuto).shared_bytes, 0ul);
+  // a slice larger than a block's shared memory: global; past kMaxBlocks samples the grid strides
+  EXPECT_EQ(team_launch_shape(8, 250000, h100, rbd::cuda::kWorkAuto).shared_bytes, 0ul);
+  EXPECT_EQ(team_launch_shape(100000, 40000, h100, rbd::cuda::kWorkGlobal).blocks, rbd::cuda::kMaxBlocks);
+  EXPECT_EQ(team_launch_shape(100000, 40000, h100, rbd::cuda::kWorkShared).shared_bytes, 40000ul);
+}
+
 TEST(Cuda, LaunchShapes) {
   using rbd::cuda::launch_shape;
   const rbd::cuda::DeviceLimits h100{132, 227ul * 1024};

@@ -195,11 +195,14 @@ def test_bench_gpu_script(tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     out = tmp_path / "gpu.md"
     r = subprocess.run([sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
-                        "--budget", "0.001", "--max-gb", "1e-5", "--out", str(out)],
+                        "--budget", "0.001", "--max-gb", "1e-5", "--kernels", "--out", str(out)],
                        env=dict(os.environ, RBDKIT_CUDA_INTERPRET="1"), capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     rows = [line.split("|")[1:-1] for line in out.read_text().splitlines() if line.startswith("| iiwa |")]
     assert len(rows) == 2 * 8 * 7  # two dtypes, eight operations, seven batch sizes
+    # --kernels: the sample and team kernel columns ("-" without device arrays)
+    assert "| sample kernel | team kernel |" in out.read_text()
+    assert all(len(r) == 10 and r[8].strip() == r[9].strip() == "-" for r in rows)
     # iiwa's ID at B = 16: 16 x 28 values in and out, 3.6 kB, under 10 kB: measured
     id16 = [r for r in rows if r[2].strip() == "ID" and r[3].strip() == "16"]
     assert len(id16) == 2 and all(float(r[5]) > 0 and float(r[6]) > 0 for r in id16)

@@ -49,6 +49,69 @@ RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w
   }
 }
 
+// subtree composites: w.Ic, w.h, w.f and w.B of each body become its subtree's
+// sums (children before parents), what the derivative entries read
+template <typename S> RBD_HD void rnea_derivatives_composites(const ModelView<S>& m, Workspace<S>& w) {
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const int p = m.body[i].parent;
+    if (p < 0) continue;
+    w.Ic[p] += w.Ic[i];
+    w.h[p] += w.h[i];
+    w.f[p] += w.f[i];
+    w.B[p] += w.B[i];
+  }
+}
+
+// the derivative entries that body i owns, after the composites: the rows of
+// joint i in the columns of i and its ancestors, and the rows of i's strict
+// ancestors in the columns of i (tau's entries of joint i too, when not null).
+// Bodies own disjoint entries on a model without mimic joints, so they may
+// run in any order, or side by side (src/cuda/team_kernels.cuh); a mimic body
+// adds into its target's entries, so there they run one after another. Adds
+// into dtau_dq, dtau_dqd (nv x nv, row-major) and tau (nv)
+template <typename S>
+RBD_HD void rnea_derivatives_body(const ModelView<S>& m, const Workspace<S>& w, int i, S* dtau_dq, S* dtau_dqd,
+                                  S* tau) {
+  const int nv = m.nv;
+  const BodyDesc<S>& bi = m.body[i];
+  const Motion<S>* si = w.S_world + 6 * i;
+  // rows of joint i, columns of i and its ancestors k:
+  //   ∂tau_i/∂q_k = dAdq_k · A_i + dVdq_k · Bt_i,  ∂tau_i/∂qd_k = dAdv_k · A_i + s_k · Bt_i
+  Force<S> A[6], Bt[6];
+  for (int a = 0; a < bi.nv; ++a) {
+    A[a] = w.Ic[i] * si[a];
+    Bt[a] = w.B[i] * si[a] - cross(si[a], w.h[i]);  // Bcᵀ s = Bc s (symmetric)
+    if (tau) tau[bi.v_idx + a] += dot(si[a], w.f[i]);
+  }
+  for (int k = i; k >= 0; k = m.body[k].parent) {
+    const BodyDesc<S>& bk = m.body[k];
+    for (int a = 0; a < bi.nv; ++a)
+      for (int c = 0; c < bk.nv; ++c) {
+        const int r = (bi.v_idx + a) * nv + bk.v_idx + c;
+        dtau_dq[r] += dot(w.dAdq[6 * k + c], A[a]) + dot(w.dVdq[6 * k + c], Bt[a]);
+        dtau_dqd[r] += dot(w.dAdv[6 * k + c], A[a]) + dot(w.S_world[6 * k + c], Bt[a]);
+      }
+  }
+  // rows of the strict ancestors j, columns of joint i:
+  //   ∂tau_j/∂q_i = s_j · Psi_i,  ∂tau_j/∂qd_i = s_j · Phi_i
+  if (bi.parent < 0) return;
+  Force<S> Psi[6], Phi[6];
+  for (int c = 0; c < bi.nv; ++c) {
+    const Motion<S>& dv = w.dVdq[6 * i + c];
+    Psi[c] = cross(si[c], w.f[i]) + w.Ic[i] * w.dAdq[6 * i + c] + w.B[i] * dv + cross(dv, w.h[i]);
+    Phi[c] = w.Ic[i] * w.dAdv[6 * i + c] + w.B[i] * si[c] + cross(si[c], w.h[i]);
+  }
+  for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
+    const BodyDesc<S>& bj = m.body[j];
+    for (int a = 0; a < bj.nv; ++a)
+      for (int c = 0; c < bi.nv; ++c) {
+        const int r = (bj.v_idx + a) * nv + bi.v_idx + c;
+        dtau_dq[r] += dot(w.S_world[6 * j + a], Psi[c]);
+        dtau_dqd[r] += dot(w.S_world[6 * j + a], Phi[c]);
+      }
+  }
+}
+
 // backward pass: subtree composites and the two derivative matrices.
 //   writes dtau_dq, dtau_dqd (nv x nv, row-major), tau (nv, or null), and
 //   turns w.Ic, w.h, w.f, w.B into subtree sums
@@ -59,51 +122,8 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
   for (int k = 0; k < nv * nv; ++k) dtau_dq[k] = S(0), dtau_dqd[k] = S(0);
   if (tau)
     for (int k = 0; k < nv; ++k) tau[k] = S(0);
-  for (int i = m.nb - 1; i >= 0; --i) {
-    const BodyDesc<S>& bi = m.body[i];
-    const Motion<S>* si = w.S_world + 6 * i;
-    // rows of joint i, columns of i and its ancestors k:
-    //   ∂tau_i/∂q_k = dAdq_k · A_i + dVdq_k · Bt_i,  ∂tau_i/∂qd_k = dAdv_k · A_i + s_k · Bt_i
-    Force<S> A[6], Bt[6];
-    for (int a = 0; a < bi.nv; ++a) {
-      A[a] = w.Ic[i] * si[a];
-      Bt[a] = w.B[i] * si[a] - cross(si[a], w.h[i]);  // Bcᵀ s = Bc s (symmetric)
-      if (tau) tau[bi.v_idx + a] += dot(si[a], w.f[i]);
-    }
-    for (int k = i; k >= 0; k = m.body[k].parent) {
-      const BodyDesc<S>& bk = m.body[k];
-      for (int a = 0; a < bi.nv; ++a)
-        for (int c = 0; c < bk.nv; ++c) {
-          const int r = (bi.v_idx + a) * nv + bk.v_idx + c;
-          dtau_dq[r] += dot(w.dAdq[6 * k + c], A[a]) + dot(w.dVdq[6 * k + c], Bt[a]);
-          dtau_dqd[r] += dot(w.dAdv[6 * k + c], A[a]) + dot(w.S_world[6 * k + c], Bt[a]);
-        }
-    }
-    // rows of the strict ancestors j, columns of joint i:
-    //   ∂tau_j/∂q_i = s_j · Psi_i,  ∂tau_j/∂qd_i = s_j · Phi_i
-    if (bi.parent >= 0) {
-      Force<S> Psi[6], Phi[6];
-      for (int c = 0; c < bi.nv; ++c) {
-        const Motion<S>& dv = w.dVdq[6 * i + c];
-        Psi[c] = cross(si[c], w.f[i]) + w.Ic[i] * w.dAdq[6 * i + c] + w.B[i] * dv + cross(dv, w.h[i]);
-        Phi[c] = w.Ic[i] * w.dAdv[6 * i + c] + w.B[i] * si[c] + cross(si[c], w.h[i]);
-      }
-      for (int j = bi.parent; j >= 0; j = m.body[j].parent) {
-        const BodyDesc<S>& bj = m.body[j];
-        for (int a = 0; a < bj.nv; ++a)
-          for (int c = 0; c < bi.nv; ++c) {
-            const int r = (bj.v_idx + a) * nv + bi.v_idx + c;
-            dtau_dq[r] += dot(w.S_world[6 * j + a], Psi[c]);
-            dtau_dqd[r] += dot(w.S_world[6 * j + a], Phi[c]);
-          }
-      }
-      // subtree sums handed to the parent
-      w.Ic[bi.parent] += w.Ic[i];
-      w.h[bi.parent] += w.h[i];
-      w.f[bi.parent] += w.f[i];
-      w.B[bi.parent] += w.B[i];
-    }
-  }
+  rnea_derivatives_composites(m, w);
+  for (int i = m.nb - 1; i >= 0; --i) rnea_derivatives_body(m, w, i, dtau_dq, dtau_dqd, tau);
 }
 
 // ∂tau/∂q and ∂tau/∂qd (nv x nv each, row-major) of tau = ID(q, qd, qdd, f_ext);

@@ -83,6 +83,15 @@ class CudaEngine {
   // The environment variable RBDKIT_CUDA_WORK sets it when an engine is made
   void set_work_memory(const std::string& where);
   std::string work_memory() const;
+  // which kernel computes an operation that has a team kernel (∇ID, ∇FD: a
+  // block of threads per sample; docs/cuda.md, "Team kernels"): "team",
+  // "sample" (one thread per sample, as every other operation), or "auto"
+  // (the default: the team kernel, on a model without mimic joints).
+  // The environment variable RBDKIT_CUDA_KERNEL sets it when an engine is made
+  void set_kernel(const std::string& which);
+  std::string kernel() const;
+  // the kernel that computes registered operation `op` on this engine now: "team" or "sample"
+  std::string kernel_for(int op) const;
   // device bytes the engine holds (work buffers, copies, the model)
   unsigned long device_bytes() const;
 

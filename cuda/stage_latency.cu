@@ -1,0 +1,155 @@
+// cuda/stage_latency.cu — how long one GPU thread takes for each pass of the
+// per-sample maths (issue 17: where the time of a sample-per-thread kernel
+// goes, before it is split across threads).
+//
+// One thread computes one sample, each stage `reps` times in a row, and
+// times each repetition with clock64(); the table holds the fastest, in
+// cycles and in µs at the SM clock. The workspace is in the block's shared
+// memory where it fits (as the backend's launch puts it at small B), else in
+// global memory. Built by the test command with nvcc beside the kernel check;
+// run on a machine with a GPU (scripts/gpu-check.sh):
+//
+//   cuda_stage_latency <robots dir>
+#include <cuda_runtime.h>
+
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/algorithms/crba.hpp"
+#include "rbdkit/algorithms/minv.hpp"
+#include "rbdkit/algorithms/rnea.hpp"
+#include "rbdkit/model/configuration.hpp"
+#include "rbdkit/parsers/model.hpp"
+
+using namespace rbd;
+
+#define CHECK_CUDA(x)                                                                   \
+  do {                                                                                  \
+    cudaError_t e_ = (x);                                                               \
+    if (e_ != cudaSuccess) {                                                            \
+      std::fprintf(stderr, "%s:%d: %s\n", __FILE__, __LINE__, cudaGetErrorString(e_)); \
+      std::exit(2);                                                                     \
+    }                                                                                   \
+  } while (0)
+
+// the stages, in the order ∇FD runs them (aba_derivatives.hpp), then the other families
+constexpr int kStages = 10;
+const char* const kStageNames[kStages] = {"world placements", "rnea", "crba", "minv (direct)", "aba",
+                                          "∇ID forward pass", "∇ID backward pass", "-M⁻¹ D (nv cols)",
+                                          "∇FD (whole)", "empty (clock cost)"};
+
+template <typename S>
+__global__ void stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
+                       int ws_in_shared, int reps, long long* cycles, S* sink) {
+  extern __shared__ __align__(16) unsigned char shared_ws[];
+  Workspace<S> w = carve_workspace<S>(ws_in_shared ? shared_ws : global_ws, m.nb, m.nv);
+  const int nv = m.nv;
+  S* out = sink;                  // (nv)
+  S* D1 = sink + nv;              // (nv x nv)
+  S* D2 = sink + nv + nv * nv;    // (nv x nv)
+  S* qdd = sink + nv + 2 * nv * nv;
+  for (int k = 0; k < kStages; ++k) cycles[k] = 1ll << 62;
+  for (int r = 0; r < reps; ++r) {
+    for (int k = 0; k < kStages; ++k) {
+      const long long t0 = clock64();
+      switch (k) {
+        case 0: for (int i = 0; i < m.nb; ++i) world_placement(m, w, q, i); break;
+        case 1: rnea(m, w, q, qd, qd, static_cast<const S*>(nullptr), gravity, out); break;
+        case 2: crba(m, w, q, D1); break;
+        case 3: minv(m, w, q, true, w.dense); break;
+        case 4: aba(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); break;
+        case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity); break;
+        case 6: rnea_derivatives_backward_pass(m, w, D1, D2, static_cast<S*>(nullptr)); break;
+        case 7: minv(m, w, q, true, w.dense), apply_neg_minv(m, w, D1, nv); break;  // minus stage 3
+        case 8: aba_derivatives(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, D1, D2); break;
+        default: break;
+      }
+      // the stage's results must be visible before the clock is read again
+      __threadfence_block();
+      const long long dt = clock64() - t0;
+      if (dt < cycles[k]) cycles[k] = dt;
+    }
+  }
+}
+
+template <typename S> void run(const Model& model, const char* label, int reps) {
+  const int nq = model.nq, nv = model.nv, nb = model.nb();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::vector<double> q0 = model.neutral(), dq(nv), q(nq);
+  for (auto& x : dq) x = U(rng);
+  integrate(model.view(), q0.data(), dq.data(), q.data());
+  std::vector<S> qs(q.begin(), q.end()), qd(nv), tau(nv);
+  for (int k = 0; k < nv; ++k) qd[k] = S(U(rng)), tau[k] = S(10 * U(rng));
+  const std::vector<BodyDesc<S>> bodies = model.bodies_as<S>();
+  BodyDesc<S>* d_bodies;
+  S *d_q, *d_qd, *d_tau, *d_sink;
+  long long* d_cycles;
+  unsigned char* d_ws;
+  const unsigned long ws_bytes = (workspace_bytes<S>(nb, nv) + 255ul) & ~255ul;
+  CHECK_CUDA(cudaMalloc(&d_bodies, bodies.size() * sizeof(BodyDesc<S>)));
+  CHECK_CUDA(cudaMemcpy(d_bodies, bodies.data(), bodies.size() * sizeof(BodyDesc<S>), cudaMemcpyHostToDevice));
+  CHECK_CUDA(cudaMalloc(&d_q, nq * sizeof(S)));
+  CHECK_CUDA(cudaMalloc(&d_qd, nv * sizeof(S)));
+  CHECK_CUDA(cudaMalloc(&d_tau, nv * sizeof(S)));
+  CHECK_CUDA(cudaMalloc(&d_sink, (2 * nv + 2 * nv * nv) * sizeof(S)));
+  CHECK_CUDA(cudaMalloc(&d_cycles, kStages * sizeof(long long)));
+  CHECK_CUDA(cudaMalloc(&d_ws, ws_bytes));
+  CHECK_CUDA(cudaMemcpy(d_q, qs.data(), nq * sizeof(S), cudaMemcpyHostToDevice));
+  CHECK_CUDA(cudaMemcpy(d_qd, qd.data(), nv * sizeof(S), cudaMemcpyHostToDevice));
+  CHECK_CUDA(cudaMemcpy(d_tau, tau.data(), nv * sizeof(S), cudaMemcpyHostToDevice));
+  int shared_max = 0, clock_khz = 0;
+  CHECK_CUDA(cudaDeviceGetAttribute(&shared_max, cudaDevAttrMaxSharedMemoryPerBlockOptin, 0));
+  CHECK_CUDA(cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0));
+  CHECK_CUDA(cudaFuncSetAttribute(stages<S>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  const ModelView<S> mv{nb, nq, nv, model.has_mimic() ? 1 : 0, d_bodies};
+  std::printf("\n%s, %s, workspace %lu bytes (one thread)\n", label, sizeof(S) == 8 ? "float64" : "float32", ws_bytes);
+  std::printf("| stage | shared: cycles | µs | global: cycles | µs |\n|---|---:|---:|---:|---:|\n");
+  long long cyc[2][kStages];
+  for (int shared = 1; shared >= 0; --shared) {
+    const bool fits = ws_bytes <= static_cast<unsigned long>(shared_max);
+    for (int k = 0; k < kStages; ++k) cyc[shared][k] = -1;
+    if (shared && !fits) continue;
+    stages<S><<<1, 1, shared ? ws_bytes : 0>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_ws, shared, reps, d_cycles, d_sink);
+    CHECK_CUDA(cudaGetLastError());
+    CHECK_CUDA(cudaDeviceSynchronize());
+    CHECK_CUDA(cudaMemcpy(cyc[shared], d_cycles, sizeof(cyc[shared]), cudaMemcpyDeviceToHost));
+  }
+  for (int k = 0; k < kStages; ++k) {
+    std::printf("| %s |", kStageNames[k]);
+    for (int shared = 1; shared >= 0; --shared) {
+      if (cyc[shared][k] < 0)
+        std::printf(" — | — |");
+      else
+        std::printf(" %lld | %.2f |", cyc[shared][k], cyc[shared][k] / (clock_khz * 1e-3));
+    }
+    std::printf("\n");
+  }
+  cudaFree(d_bodies), cudaFree(d_q), cudaFree(d_qd), cudaFree(d_tau), cudaFree(d_sink), cudaFree(d_cycles),
+      cudaFree(d_ws);
+}
+
+int main(int argc, char** argv) {
+  int count = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess || count == 0) {
+    std::printf("no CUDA device: the probe compiled; nothing to run here\n");
+    return 0;
+  }
+  cudaDeviceProp p;
+  CHECK_CUDA(cudaGetDeviceProperties(&p, 0));
+  int clock_khz = 0;
+  CHECK_CUDA(cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0));
+  std::printf("%s, SM clock %.0f MHz; fastest of 20 repetitions per stage\n", p.name, clock_khz * 1e-3);
+  const std::string dir = argc > 1 ? argv[1] : "robots";
+  for (auto [name, floating] : {std::pair<const char*, bool>{"iiwa", false}, {"atlas", true}}) {
+    const Model m = Model::from_urdf_file(dir + "/" + name + ".urdf", floating);
+    const std::string label = std::string(name) + (floating ? " floating" : "");
+    run<float>(m, label.c_str(), 20);
+    run<double>(m, label.c_str(), 20);
+  }
+  return 0;
+}

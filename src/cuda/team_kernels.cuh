@@ -1,0 +1,229 @@
+// src/cuda/team_kernels.cuh — cooperative kernels: a team of threads (one
+// block of kTeam) computes one sample, for the operations whose one-thread
+// chain is long (issue 17; docs/cuda.md, "Team kernels"). One GPU thread takes
+// 100 µs for iiwa's ∇FD and 1.6 ms for floating Atlas's, the dense product
+// -M⁻¹ ∂ID alone 40 % and 70 % of it (cuda/stage_latency.cu on an H200,
+// docs/gpu.md); a team splits that work across its threads.
+//
+// A team kernel is written as phases, each "for each index this thread owns",
+// ended by a barrier (Team::each), or one thread's serial pass (Team::one), or
+// two serial passes side by side on two warps (Team::two). What a phase hands
+// to the next goes through memory (the sample's work slice or its outputs);
+// a local variable outside a phase must be the same on every thread (sizes,
+// pointers, a flag read back after a barrier). The same source runs:
+//   BlockTeam   (nvcc)  the block's threads, __syncthreads() between phases
+//   SerialTeam  (interpret mode, RBDKIT_CUDA_INTERPRET=1)  a phase's indices
+//               one after another, the last first: a phase that reads what an
+//               earlier index of the same phase wrote gives a wrong result in
+//               CI, as it would race on a GPU
+// Each team operation (TeamOp<Op>) computes what the registry's Op::run
+// computes, from the same family headers, on a model without mimic joints (a
+// mimic body adds into its target's entries, which would race); the engine
+// runs the sample-per-thread kernel (kernels.cuh) for the others.
+#pragma once
+
+#include "kernels.cuh"
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+
+namespace rbd {
+namespace cuda {
+
+constexpr int kTeam = 64;  // threads per sample: two warps (Team::two runs one serial pass on each)
+
+// ---- the teams
+struct BlockTeam {
+  // every index below n: thread t takes t, t + kTeam, ...
+  template <typename F> RBD_HD void each(int n, F&& f) const {
+#if defined(__CUDA_ARCH__)
+    for (int k = threadIdx.x; k < n; k += kTeam) f(k);
+    __syncthreads();
+#else
+    (void)n, (void)f;
+#endif
+  }
+  template <typename F> RBD_HD void one(F&& f) const {
+#if defined(__CUDA_ARCH__)
+    if (threadIdx.x == 0) f();
+    __syncthreads();
+#else
+    (void)f;
+#endif
+  }
+  // f0 on the first warp's first thread, f1 on the second warp's: two chains side by side
+  template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const {
+#if defined(__CUDA_ARCH__)
+    if (threadIdx.x == 0) f0();
+    else if (threadIdx.x == 32) f1();
+    __syncthreads();
+#else
+    (void)f0, (void)f1;
+#endif
+  }
+  // whether x[0..n) are all finite, on every thread (a vote, and a barrier)
+  template <typename T> RBD_HD bool all_finite(const T* x, long n) const {
+#if defined(__CUDA_ARCH__)
+    T acc = T(0);
+    for (long k = threadIdx.x; k < n; k += kTeam) acc += x[k] - x[k];
+    return __syncthreads_and(acc == acc) != 0;
+#else
+    (void)x, (void)n;
+    return false;
+#endif
+  }
+};
+
+struct SerialTeam {
+  template <typename F> void each(int n, F&& f) const {
+    for (int k = n - 1; k >= 0; --k) f(k);
+  }
+  template <typename F> void one(F&& f) const { f(); }
+  template <typename F0, typename F1> void two(F0&& f0, F1&& f1) const { f1(), f0(); }
+  template <typename T> bool all_finite(const T* x, long n) const { return cuda::all_finite(x, n); }
+};
+
+// ---- the team operations: TeamOp<Op>::run(team, m, w, extra, a) computes Op::run's outputs; extra:
+// extra_bytes(nb, nv) of the sample's work slice after its workspace (16-byte aligned)
+template <typename Op> struct TeamOp {
+  static constexpr bool available = false;
+};
+
+// ∂ID/∂q and ∂ID/∂qd (rnea_derivatives.hpp): the forward pass and the subtree composites on one
+// thread, then each body's entries side by side
+template <> struct TeamOp<ops::InverseDynamicsGradient> {
+  static constexpr bool available = true;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int nv) {
+    return workspace_array_bytes<T>(2ul * nv * nv);
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, unsigned char* extra,
+                         const ops::OpArgs<T>& a) {
+    const int nv = m.nv, n2 = nv * nv;
+    T* dq = a.out[1] ? a.out[1] : reinterpret_cast<T*>(extra);
+    T* dv = a.out[2] ? a.out[2] : reinterpret_cast<T*>(extra) + n2;
+    t.each(n2, [&](int k) { dq[k] = T(0), dv[k] = T(0); });
+    t.one([&] {
+      rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3]);
+      rnea_derivatives_composites(m, w);
+    });
+    t.each(m.nb, [&](int i) { rnea_derivatives_body(m, w, i, dq, dv, static_cast<T*>(nullptr)); });
+    if (a.out[0])  // dtau = [dtau_dq | dtau_dqd]
+      t.each(2 * n2, [&](int k) {
+        const int r = k / (2 * nv), c = k % (2 * nv);
+        a.out[0][k] = c < nv ? dq[r * nv + c] : dv[r * nv + c - nv];
+      });
+    return true;
+  }
+};
+
+// ∂qdd/∂q and ∂qdd/∂qd = -M⁻¹ ∂ID/∂(q, qd) at qdd = FD (aba_derivatives.hpp): qdd by ABA on one
+// warp beside M⁻¹ on the other, each in its own workspace; the derivative pass on M⁻¹'s
+// placements; then each body's entries, and each entry of the two products, side by side
+template <> struct TeamOp<ops::ForwardDynamicsGradient> {
+  static constexpr bool available = true;
+  // ABA's linear workspace, ∂ID/∂q and ∂ID/∂qd, qdd, the two passes' flags
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(2ul * nv * nv + nv) + 16;
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, unsigned char* extra,
+                         const ops::OpArgs<T>& a) {
+    const int nv = m.nv, n2 = nv * nv;
+    const T *q = a.in[0], *qd = a.in[1], *fext = a.in[3];
+    const T gravity = a.real[4];
+    Workspace<T> wa = carve_workspace<T>(extra, m.nb, nv, kLinearWorkspace);
+    T* dq = reinterpret_cast<T*>(extra + workspace_bytes<T>(m.nb, nv, kLinearWorkspace));
+    T* dv = dq + n2;
+    T* qdd = a.out[2] ? a.out[2] : dv + n2;
+    int* ok = reinterpret_cast<int*>(extra + extra_bytes<T>(m.nb, nv) - 16);
+    const T* Minv = w.dense;
+    t.each(n2, [&](int k) { dq[k] = T(0), dv[k] = T(0); });
+    t.two([&] { ok[0] = aba(m, wa, q, qd, a.in[2], fext, gravity, qdd); },
+          [&] { ok[1] = minv(m, w, q, true, w.dense); });
+    if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
+    t.one([&] {
+      rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, true);
+      rnea_derivatives_composites(m, w);
+    });
+    t.each(m.nb, [&](int i) { rnea_derivatives_body(m, w, i, dq, dv, static_cast<T*>(nullptr)); });
+    // -M⁻¹ D for both matrices, an entry per index; then M⁻¹ when asked for
+    t.each(2 * n2, [&](int k) {
+      const T* D = k < n2 ? dq : dv;
+      const int r = (k % n2) / nv, c = k % nv;
+      T acc = T(0);
+      for (int l = 0; l < nv; ++l) acc += Minv[r * nv + l] * D[l * nv + c];
+      (k < n2 ? a.out[0] : a.out[1])[r * nv + c] = -acc;
+    });
+    if (a.out[3]) t.each(n2, [&](int k) { a.out[3][k] = Minv[k]; });
+    return true;
+  }
+};
+
+// the work slice of a team sample: the workspace, then the larger of the op's scratch and the team's extra
+template <typename Op, typename T> RBD_HD unsigned long team_extra_bytes(int nb, int nv) {
+  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::template extra_bytes<T>(nb, nv);
+  else return 0;
+}
+
+// sample s of Op by team t (every thread of it calls this): op_sample's arguments, checks and status
+template <typename Op, typename T, typename Team>
+RBD_HD void team_sample(const Team& t, const DeviceCall<T>& c, const ModelView<T>& m, long s, unsigned char* work) {
+  constexpr int n_out = Op::spec.n_out;
+  constexpr bool finite_outputs = Op::spec.outputs == ops::kFiniteOutputs;
+  if (c.check_inputs && !inputs_ok<Op>(c, m, s)) {  // (every thread reads the same values)
+    t.one([&] {
+      c.status[s] = kSampleBadInput;
+      *c.failed = c.call_id;
+    });
+    return;
+  }
+  Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
+  const ops::OpArgs<T> a = sample_args(c, s, work);
+  int status = kSampleOk;
+  if (!TeamOp<Op>::run(t, m, w, work + c.ws_bytes, a)) {
+    status = kSampleFailed;
+  } else if (finite_outputs) {
+    for (int o = n_out - 1; o >= 0; --o)
+      if (a.out[o] && !t.all_finite(a.out[o], c.out_values[o])) status = kSampleNonFinite + o;
+  }
+  t.one([&] {
+    c.status[s] = status;
+    if (status != kSampleOk) *c.failed = c.call_id;
+  });
+}
+
+#if defined(__CUDACC__)
+// a block per sample, over a grid-stride loop; dynamic shared memory: the sample's work slice when
+// c.work_shared
+template <typename Op, typename T>
+__global__ void __launch_bounds__(kTeam) team_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
+  extern __shared__ __align__(16) unsigned char shared_work[];
+  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
+  if constexpr (TeamOp<Op>::available) {
+    const BlockTeam t;
+    for (long s = blockIdx.x; s < c.B; s += gridDim.x)
+      team_sample<Op>(t, c, m, s, c.work_shared ? shared_work : c.work + static_cast<unsigned long>(s) * c.work_bytes);
+  }
+}
+#endif
+
+// Op's team launch in interpret mode: each block's samples, a team at a time
+template <typename Op, typename T> void interpret_team_op(const DeviceCall<T>& c, LaunchShape shape) {
+  if constexpr (TeamOp<Op>::available) {
+    const SerialTeam t;
+    emulate_launch(LaunchShape{shape.blocks, 1, shape.shared_bytes, shape.shared_limit},
+                   [&](long b, int, unsigned char* shared) {
+                     for (long s = b; s < c.B; s += shape.blocks)
+                       team_sample<Op>(t, c, c.model, s,
+                                       c.work_shared ? shared : c.work + static_cast<unsigned long>(s) * c.work_bytes);
+                   });
+  }
+}
+
+// per registered operation (ops::AllOps' order): 0 without a team kernel, else its extra bytes
+template <typename T, typename... Op> void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* out) {
+  int k = 0;
+  ((out[k++] = team_extra_bytes<Op, T>(nb, nv)), ...);
+}
+
+}  // namespace cuda
+}  // namespace rbd
