@@ -39,7 +39,7 @@ using namespace rbd;
 // the stages, in the order ∇FD runs them (aba_derivatives.hpp), then the other families
 constexpr int kStages = 10;
 const char* const kStageNames[kStages] = {"world placements", "rnea", "crba", "minv (direct)", "aba",
-                                          "∇ID forward pass", "∇ID backward pass", "-M⁻¹ D (nv cols)",
+                                          "∇ID forward pass", "∇ID backward pass", "-M⁻¹ D (one nv x nv)",
                                           "∇FD (whole)", "empty (clock cost)"};
 
 template <typename S>
@@ -64,7 +64,7 @@ __global__ void stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S 
         case 4: aba(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); break;
         case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity); break;
         case 6: rnea_derivatives_backward_pass(m, w, D1, D2, static_cast<S*>(nullptr)); break;
-        case 7: minv(m, w, q, true, w.dense), apply_neg_minv(m, w, D1, nv); break;  // minus stage 3
+        case 7: apply_neg_minv(m, w, D1, nv); break;  // (w.dense holds stage 3's M⁻¹)
         case 8: aba_derivatives(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, D1, D2); break;
         default: break;
       }

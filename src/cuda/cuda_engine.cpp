@@ -148,8 +148,15 @@ struct CudaEngine::Impl {
                          bool device_arrays, size_t value_bytes);
   template <typename T> [[noreturn]] void fail_inputs(const ops::OpSpec& op, const ops::OpCall& c,
                                                       const std::vector<long>& samples);
-  // the team kernel where the op has one, on a model without mimic joints (team_kernels.cuh)
-  bool uses_team(int op) const { return team_extra[op] && !model.has_mimic() && kernel != "sample"; }
+  // the team kernel (team_kernels.cuh) where the op has one, on a model without mimic joints: asked
+  // for, or (auto) while the batch is small for the GPU (at most 8 samples per SM: a sample per
+  // thread leaves the GPU idle), or where nv³ products dominate one thread's chain (nv >= 16). On an
+  // H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to B = 1024 (8 per SM) and slower
+  // from B = 4096 on, and faster on floating Atlas at every B
+  bool uses_team(int op, long B) const {
+    if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
+    return kernel == "team" || B <= 8L * std::max(limits.multiprocessors, 1) || model.nv >= 16;
+  }
   static std::string checked_kernel(const std::string& k, const char* what) {
     if (k != "auto" && k != "team" && k != "sample")
       throw std::invalid_argument(std::string(what) + ": expected 'auto', 'team' or 'sample', got '" + k + "'");
@@ -173,7 +180,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   dc.model = {m.nb(), m.nq, m.nv, m.has_mimic() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
   dc.layout = ops::workspace_layout(op, m);
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
-  const bool team = uses_team(op_id);
+  const bool team = uses_team(op_id, B);
   const unsigned long scratch_bytes = sizeof(T) * ops::scratch_values(op, m);
   dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? std::max(scratch_bytes, team_extra[op_id]) : scratch_bytes)));
   auto shape_of = [&](long n, cuda::WorkMemory where) {
@@ -409,11 +416,11 @@ std::string CudaEngine::kernel() const {
   std::lock_guard<std::mutex> lk(impl_->call);
   return impl_->kernel;
 }
-std::string CudaEngine::kernel_for(int op) const {
+std::string CudaEngine::kernel_for(int op, long B) const {
   if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
     throw std::invalid_argument("kernel_for: unknown operation id " + std::to_string(op));
   std::lock_guard<std::mutex> lk(impl_->call);
-  return impl_->uses_team(op) ? "team" : "sample";
+  return impl_->uses_team(op, B) ? "team" : "sample";
 }
 unsigned long CudaEngine::device_bytes() const {
   return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes + impl_->flag.bytes;

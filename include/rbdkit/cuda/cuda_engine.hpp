@@ -86,12 +86,13 @@ class CudaEngine {
   // which kernel computes an operation that has a team kernel (∇ID, ∇FD: a
   // block of threads per sample; docs/cuda.md, "Team kernels"): "team",
   // "sample" (one thread per sample, as every other operation), or "auto"
-  // (the default: the team kernel, on a model without mimic joints).
+  // (the default: the team kernel on a model without mimic joints, for a
+  // batch of at most 8 samples per SM, or at any B when nv >= 16).
   // The environment variable RBDKIT_CUDA_KERNEL sets it when an engine is made
   void set_kernel(const std::string& which);
   std::string kernel() const;
-  // the kernel that computes registered operation `op` on this engine now: "team" or "sample"
-  std::string kernel_for(int op) const;
+  // the kernel that computes registered operation `op` over B samples on this engine now: "team" or "sample"
+  std::string kernel_for(int op, long B) const;
   // device bytes the engine holds (work buffers, copies, the model)
   unsigned long device_bytes() const;
 
