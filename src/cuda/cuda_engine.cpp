@@ -182,7 +182,8 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
   const bool team = uses_team(op_id, B);
   const unsigned long scratch_bytes = sizeof(T) * ops::scratch_values(op, m);
-  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? std::max(scratch_bytes, team_extra[op_id]) : scratch_bytes)));
+  // a team's slice: the workspace, the op's scratch, the team's extra at the end (team_sample)
+  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? round16(scratch_bytes) + team_extra[op_id] : scratch_bytes)));
   auto shape_of = [&](long n, cuda::WorkMemory where) {
     return team ? cuda::team_launch_shape(n, dc.work_bytes, limits, where)
                 : cuda::launch_shape(n, dc.work_bytes, limits, where);

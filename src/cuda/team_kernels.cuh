@@ -5,25 +5,31 @@
 // -M⁻¹ ∂ID alone 40 % and 70 % of it (cuda/stage_latency.cu on an H200,
 // docs/gpu.md); a team splits that work across its threads.
 //
-// A team kernel is written as phases, each "for each index this thread owns",
-// ended by a barrier (Team::each), or one thread's serial pass (Team::one), or
-// two serial passes side by side on two warps (Team::two). What a phase hands
-// to the next goes through memory (the sample's work slice or its outputs);
-// a local variable outside a phase must be the same on every thread (sizes,
-// pointers, a flag read back after a barrier). The same source runs:
+// A team kernel is written as phases (model/team.hpp): "for each index this
+// thread owns", ended by a barrier (Team::each), or one thread's serial pass
+// (Team::one), or two serial passes side by side on two warps (Team::two).
+// What a phase hands to the next goes through memory (the sample's work slice
+// or its outputs); a local variable outside a phase must be the same on every
+// thread (sizes, pointers, a flag read back after a barrier). The same source
+// runs:
 //   BlockTeam   (nvcc)  the block's threads, __syncthreads() between phases
 //   SerialTeam  (interpret mode, RBDKIT_CUDA_INTERPRET=1)  a phase's indices
 //               one after another, the last first: a phase that reads what an
 //               earlier index of the same phase wrote gives a wrong result in
 //               CI, as it would race on a GPU
-// Each team operation (TeamOp<Op>) computes what the registry's Op::run
-// computes, from the same family headers, on a model without mimic joints (a
-// mimic body adds into its target's entries, which would race); the engine
-// runs the sample-per-thread kernel (kernels.cuh) for the others.
+// The algorithms are the family headers' own, written for a team where they
+// are split (aba_derivatives_team, integrator_gradient_with, matmul on a
+// team); on the CPU the same source runs on an InlineTeam. Each team
+// operation (TeamOp<Op>) computes what the registry's Op::run computes, on a
+// model without mimic joints (a mimic body adds into its target's entries,
+// which would race); the engine runs the sample-per-thread kernel
+// (kernels.cuh) for the others.
 #pragma once
 
 #include "kernels.cuh"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/model/team.hpp"
+#include "rbdkit/plant/integrators.hpp"
 
 namespace rbd {
 namespace cuda {
@@ -31,15 +37,21 @@ namespace cuda {
 constexpr int kTeam = 64;  // threads per sample: two warps (Team::two runs one serial pass on each)
 
 // ---- the teams
+// extra: the team's own memory in the sample's work slice (TeamOp<Op>::extra_bytes, at its end)
 struct BlockTeam {
+  static constexpr bool cooperative = true;
+  unsigned char* extra = nullptr;
   // every index below n: thread t takes t, t + kTeam, ...
-  template <typename F> RBD_HD void each(int n, F&& f) const {
+  template <typename F> RBD_HD void each(long n, F&& f) const {
 #if defined(__CUDA_ARCH__)
-    for (int k = threadIdx.x; k < n; k += kTeam) f(k);
+    for (long k = threadIdx.x; k < n; k += kTeam) f(k);
     __syncthreads();
 #else
     (void)n, (void)f;
 #endif
+  }
+  template <typename F> RBD_HD void each2(long rows, long cols, F&& f) const {
+    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
   }
   template <typename F> RBD_HD void one(F&& f) const {
 #if defined(__CUDA_ARCH__)
@@ -73,16 +85,21 @@ struct BlockTeam {
 };
 
 struct SerialTeam {
-  template <typename F> void each(int n, F&& f) const {
-    for (int k = n - 1; k >= 0; --k) f(k);
+  static constexpr bool cooperative = true;
+  unsigned char* extra = nullptr;
+  template <typename F> void each(long n, F&& f) const {
+    for (long k = n - 1; k >= 0; --k) f(k);
+  }
+  template <typename F> void each2(long rows, long cols, F&& f) const {
+    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
   }
   template <typename F> void one(F&& f) const { f(); }
   template <typename F0, typename F1> void two(F0&& f0, F1&& f1) const { f1(), f0(); }
   template <typename T> bool all_finite(const T* x, long n) const { return cuda::all_finite(x, n); }
 };
 
-// ---- the team operations: TeamOp<Op>::run(team, m, w, extra, a) computes Op::run's outputs; extra:
-// extra_bytes(nb, nv) of the sample's work slice after its workspace (16-byte aligned)
+// ---- the team operations: TeamOp<Op>::run(team, m, w, a) computes Op::run's outputs, with
+// team.extra: extra_bytes(nb, nv) bytes (a multiple of 16) after the workspace and the op's scratch
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
 };
@@ -95,78 +112,79 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
     return workspace_array_bytes<T>(2ul * nv * nv);
   }
   template <typename T, typename Team>
-  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, unsigned char* extra,
-                         const ops::OpArgs<T>& a) {
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
     const int nv = m.nv, n2 = nv * nv;
-    T* dq = a.out[1] ? a.out[1] : reinterpret_cast<T*>(extra);
-    T* dv = a.out[2] ? a.out[2] : reinterpret_cast<T*>(extra) + n2;
-    t.each(n2, [&](int k) { dq[k] = T(0), dv[k] = T(0); });
+    T* dq = a.out[1] ? a.out[1] : reinterpret_cast<T*>(t.extra);
+    T* dv = a.out[2] ? a.out[2] : reinterpret_cast<T*>(t.extra) + n2;
+    t.each(n2, [&](long k) { dq[k] = T(0), dv[k] = T(0); });
     t.one([&] {
       rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3]);
       rnea_derivatives_composites(m, w);
     });
-    t.each(m.nb, [&](int i) { rnea_derivatives_body(m, w, i, dq, dv, static_cast<T*>(nullptr)); });
+    t.each(m.nb, [&](long i) { rnea_derivatives_body(m, w, static_cast<int>(i), dq, dv, static_cast<T*>(nullptr)); });
     if (a.out[0])  // dtau = [dtau_dq | dtau_dqd]
-      t.each(2 * n2, [&](int k) {
-        const int r = k / (2 * nv), c = k % (2 * nv);
+      t.each(2 * n2, [&](long k) {
+        const int r = static_cast<int>(k / (2 * nv)), c = static_cast<int>(k % (2 * nv));
         a.out[0][k] = c < nv ? dq[r * nv + c] : dv[r * nv + c - nv];
       });
     return true;
   }
 };
 
-// ∂qdd/∂q and ∂qdd/∂qd = -M⁻¹ ∂ID/∂(q, qd) at qdd = FD (aba_derivatives.hpp): qdd by ABA on one
-// warp beside M⁻¹ on the other, each in its own workspace; the derivative pass on M⁻¹'s
-// placements; then each body's entries, and each entry of the two products, side by side
+// ∂qdd/∂q and ∂qdd/∂qd = -M⁻¹ ∂ID/∂(q, qd) at qdd = FD: aba_derivatives_team (aba_derivatives.hpp)
 template <> struct TeamOp<ops::ForwardDynamicsGradient> {
   static constexpr bool available = true;
-  // ABA's linear workspace, ∂ID/∂q and ∂ID/∂qd, qdd, the two passes' flags
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
-    return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(2ul * nv * nv + nv) + 16;
+    return aba_derivatives_team_bytes<T>(nb, nv);
   }
   template <typename T, typename Team>
-  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, unsigned char* extra,
-                         const ops::OpArgs<T>& a) {
-    const int nv = m.nv, n2 = nv * nv;
-    const T *q = a.in[0], *qd = a.in[1], *fext = a.in[3];
-    const T gravity = a.real[4];
-    Workspace<T> wa = carve_workspace<T>(extra, m.nb, nv, kLinearWorkspace);
-    T* dq = reinterpret_cast<T*>(extra + workspace_bytes<T>(m.nb, nv, kLinearWorkspace));
-    T* dv = dq + n2;
-    T* qdd = a.out[2] ? a.out[2] : dv + n2;
-    int* ok = reinterpret_cast<int*>(extra + extra_bytes<T>(m.nb, nv) - 16);
-    const T* Minv = w.dense;
-    t.each(n2, [&](int k) { dq[k] = T(0), dv[k] = T(0); });
-    t.two([&] { ok[0] = aba(m, wa, q, qd, a.in[2], fext, gravity, qdd); },
-          [&] { ok[1] = minv(m, w, q, true, w.dense); });
-    if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
-    t.one([&] {
-      rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, true);
-      rnea_derivatives_composites(m, w);
-    });
-    t.each(m.nb, [&](int i) { rnea_derivatives_body(m, w, i, dq, dv, static_cast<T*>(nullptr)); });
-    // -M⁻¹ D for both matrices, an entry per index; then M⁻¹ when asked for
-    t.each(2 * n2, [&](int k) {
-      const T* D = k < n2 ? dq : dv;
-      const int r = (k % n2) / nv, c = k % nv;
-      T acc = T(0);
-      for (int l = 0; l < nv; ++l) acc += Minv[r * nv + l] * D[l * nv + c];
-      (k < n2 ? a.out[0] : a.out[1])[r * nv + c] = -acc;
-    });
-    if (a.out[3]) t.each(n2, [&](int k) { a.out[3][k] = Minv[k]; });
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    if (!aba_derivatives_team(t, m, w, t.extra, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], a.out[2], a.out[0],
+                              a.out[1]))
+      return false;
+    if (a.out[3]) t.each(m.nv * m.nv, [&](long k) { a.out[3][k] = w.dense[k]; });  // M⁻¹, when asked for
     return true;
   }
 };
 
-// the work slice of a team sample: the workspace, then the larger of the op's scratch and the team's extra
+// the integrator step and its gradient (integrators.hpp), every scheme, with or without ∂x⁺/∂f_ext:
+// integrator_gradient_with on the team, each stage's ∇FD by aba_derivatives_team and the chain rule's
+// products an entry per index. MuJoCo's convention runs the registry's kernel on one thread of the team
+template <typename Op> struct TeamStep {
+  static constexpr bool available = true;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return aba_derivatives_team_bytes<T>(nb, nv) + 16;
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, m.nv) - 16);
+    if (a.choice[7] != kPinocchioConvention) {
+      t.one([&] { *ok = Op::run(m, w, a); });
+      return *ok;
+    }
+    constexpr bool with_fext = Op::spec.n_out == 3;
+    const long own = with_fext ? integrator_fext_gradient_scratch_values(m.nq, m.nv, m.nb)
+                               : integrator_gradient_scratch_values(m.nq, m.nv);
+    T* x = a.out[0] ? a.out[0] : a.scratch + own;  // x⁺ and AB in the scratch when not asked for, as Op::run
+    T* AB = a.out[1] ? a.out[1] : a.scratch + own + m.nq + m.nv;
+    return integrator_gradient_with<PinocchioStep<T>>(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5],
+                                                      a.real[3], a.real[6], x, x + m.nq, AB,
+                                                      with_fext ? a.out[2] : static_cast<T*>(nullptr), a.scratch, t);
+  }
+};
+template <> struct TeamOp<ops::IntegratorGradient> : TeamStep<ops::IntegratorGradient> {};
+template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::IntegratorFExtGradient> {};
+
+// the team's extra bytes of Op (0: Op has no team kernel)
 template <typename Op, typename T> RBD_HD unsigned long team_extra_bytes(int nb, int nv) {
   if constexpr (TeamOp<Op>::available) return TeamOp<Op>::template extra_bytes<T>(nb, nv);
   else return 0;
 }
 
-// sample s of Op by team t (every thread of it calls this): op_sample's arguments, checks and status
+// sample s of Op by team t (every thread of it calls this): op_sample's arguments, checks and status.
+// The work slice (c.work_bytes): the workspace, the op's scratch, the team's extra at its end
 template <typename Op, typename T, typename Team>
-RBD_HD void team_sample(const Team& t, const DeviceCall<T>& c, const ModelView<T>& m, long s, unsigned char* work) {
+RBD_HD void team_sample(Team t, const DeviceCall<T>& c, const ModelView<T>& m, long s, unsigned char* work) {
   constexpr int n_out = Op::spec.n_out;
   constexpr bool finite_outputs = Op::spec.outputs == ops::kFiniteOutputs;
   if (c.check_inputs && !inputs_ok<Op>(c, m, s)) {  // (every thread reads the same values)
@@ -178,8 +196,9 @@ RBD_HD void team_sample(const Team& t, const DeviceCall<T>& c, const ModelView<T
   }
   Workspace<T> w = carve_workspace<T>(work, m.nb, m.nv, c.layout);
   const ops::OpArgs<T> a = sample_args(c, s, work);
+  t.extra = work + c.work_bytes - team_extra_bytes<Op, T>(m.nb, m.nv);
   int status = kSampleOk;
-  if (!TeamOp<Op>::run(t, m, w, work + c.ws_bytes, a)) {
+  if (!TeamOp<Op>::run(t, m, w, a)) {
     status = kSampleFailed;
   } else if (finite_outputs) {
     for (int o = n_out - 1; o >= 0; --o)

@@ -188,20 +188,23 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
-// the team kernels (src/cuda/team_kernels.cuh: ∇ID and ∇FD, a block of threads per sample) against
-// the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in
-// shared and in global memory, every output or some, f_ext; mimic models keep the sample kernel;
-// device arrays' values checked by the team
+// the team kernels (src/cuda/team_kernels.cuh: ∇ID, ∇FD, the integrator step's gradient with and
+// without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as the sample-per-thread
+// kernels are: every test model, both dtypes, the work in shared and in global memory, every output or
+// some, f_ext, every integrator scheme in both conventions (MuJoCo's on one thread of the team);
+// mimic models keep the sample kernel; device arrays' values checked by the team
 TEST(Cuda, TeamKernelsEqualCpu) {
   for (const ModelCase& mc : rbd_test::all_cases()) {
     const Model m = Model::from_urdf_file(mc.path, mc.floating);
     SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
     rbd::Handle serial(m);
     const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
-    for (const char* name : {"inverse_dynamics_gradient", "forward_dynamics_gradient"}) {
+    for (const char* name : {"inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient",
+                             "integrator_f_ext_gradient"}) {
       SCOPED_TRACE(name);
       const int id = ops::find_op(name);
       const ops::OpSpec& op = *ops::op_table()[id].spec;
+      const bool step = std::string(op.family) == "integrators";
       // auto: the team on a small batch (at most 8 per SM: 32 on the interpret device), or when
       // nv >= 16; a mimic model keeps the sample kernel whatever is asked
       EXPECT_EQ(p64->cuda()->kernel(), "auto");
@@ -212,12 +215,18 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       p64->cuda()->set_kernel("sample");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
       p64->cuda()->set_kernel("auto");
-      const Inputs in = make_inputs(m, op, 5, 11, true);
-      // ∇ID: every output, dtau alone, the halves alone; ∇FD: every output, the two matrices alone
-      const std::vector<unsigned> masks = op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110}
-                                                        : std::vector<unsigned>{0b1111, 0b0011};
+      Inputs in = make_inputs(m, op, 5, 11, true);
+      // ∇ID: every output, dtau alone, the halves alone; ∇FD: every output, the two matrices alone; the
+      // steps: every output, the last alone; each step with every scheme (the 6 integrator types) and
+      // convention (0: Pinocchio's, 1: MuJoCo's)
+      const std::vector<unsigned> masks =
+          step ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
+          : op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110} : std::vector<unsigned>{0b1111, 0b0011};
+      for (int variant = 0; variant < (step ? 12 : 1); ++variant)
       for (unsigned mask : masks) {
         SCOPED_TRACE(mask);
+        SCOPED_TRACE(variant);
+        if (step) in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
         const std::vector<double> ref = run<double>(serial, id, in, mask);
         for (const char* where : {"shared", "global"}) {
           p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);

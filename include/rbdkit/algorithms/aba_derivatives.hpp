@@ -70,6 +70,44 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   return true;
 }
 
+// aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
+// for a model without mimic joints: ABA for qdd beside M⁻¹, each on one thread and its own workspace
+// (ABA's, linear, in `extra`); the derivative passes on M⁻¹'s placements, the composites on one thread
+// and each body's entries side by side (rnea_derivatives_body); then every entry of the two products
+// -M⁻¹ ∂ID. The same results as aba_derivatives (each entry's sums in the same order), M⁻¹ left in
+// w.dense as there. extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
+template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {
+  return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(2ul * nv * nv + nv) + 16;
+}
+template <typename S, typename Team>
+RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, unsigned char* extra,
+                                 const S* q, const S* qd, const S* tau, const S* fext, S gravity, S* qdd,
+                                 S* dqdd_dq, S* dqdd_dqd) {
+  const int nv = m.nv, n2 = nv * nv;
+  Workspace<S> wa = carve_workspace<S>(extra, m.nb, nv, kLinearWorkspace);
+  S* dq = reinterpret_cast<S*>(extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));  // ∂ID/∂q
+  S* dv = dq + n2;                                                                         // ∂ID/∂qd
+  if (!qdd) qdd = dv + n2;
+  int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
+  const S* Minv = w.dense;
+  t.each(n2, [&](long k) { dq[k] = S(0), dv[k] = S(0); });
+  t.two([&] { ok[0] = aba(m, wa, q, qd, tau, fext, gravity, qdd); }, [&] { ok[1] = minv(m, w, q, true, w.dense); });
+  if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
+  t.one([&] {
+    rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, true);
+    rnea_derivatives_composites(m, w);
+  });
+  t.each(m.nb, [&](long i) { rnea_derivatives_body(m, w, static_cast<int>(i), dq, dv, static_cast<S*>(nullptr)); });
+  t.each(2 * n2, [&](long k) {
+    const S* D = k < n2 ? dq : dv;
+    const int r = static_cast<int>(k % n2) / nv, c = static_cast<int>(k % nv);
+    S acc = S(0);
+    for (int l = 0; l < nv; ++l) acc += Minv[r * nv + l] * D[l * nv + c];
+    (k < n2 ? dqdd_dq : dqdd_dqd)[r * nv + c] = -acc;
+  });
+  return true;
+}
+
 // the generalized force that body-local wrenches f_ext act as: sign · J_bᵀ f_b
 // summed over bodies, as the matrix of its entries, element [b][r][c] =
 // sign · (J_b)[c][r] at Jt[b·body_stride + r·row_stride + c] (J_b: body b's

@@ -24,6 +24,7 @@
 
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/model/configuration.hpp"
+#include "rbdkit/model/team.hpp"
 #include "rbdkit/plant/mujoco_convention.hpp"
 
 namespace rbd {
@@ -74,6 +75,20 @@ template <typename S> struct PinocchioStep {
     copy_minv(m, w, Fu);  // ∂a/∂u = M⁻¹, which aba_derivatives left in w
     return true;
   }
+  // the same on a team: a cooperative one (a model without mimic joints) splits ∇FD
+  // (aba_derivatives_team, in t.extra) and the copy of M⁻¹
+  template <typename Team>
+  RBD_HD static bool acceleration_derivatives(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
+                                              const S* v, const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv,
+                                              S* Fu, S* scratch) {
+    if constexpr (!Team::cooperative) {
+      return acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
+    } else {
+      if (!aba_derivatives_team(t, m, w, t.extra, q, v, u, fext, gravity, a, Fq, Fv)) return false;
+      t.each(static_cast<long>(m.nv) * m.nv, [&](long k) { Fu[k] = w.dense[k]; });
+      return true;
+    }
+  }
   // the generalized force the body-local wrenches f_ext act as, J_f = ∂u/∂f = [J_0ᵀ … J_(nb-1)ᵀ]
   // (nv x 6nb) at q (so ∂a/∂f = Fu J_f)
   RBD_HD static void force_map(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Jf, S*) {
@@ -98,6 +113,14 @@ template <typename S> struct MujocoStep {
                                               const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu,
                                               S* scratch) {
     return mujoco_acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
+  }
+  // (one thread: the team kernels run MuJoCo's convention serially, src/cuda/team_kernels.cuh)
+  template <typename Team>
+  RBD_HD static bool acceleration_derivatives(const Team&, const ModelView<S>& m, Workspace<S>& w, const S* q,
+                                              const S* v, const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv,
+                                              S* Fu, S* scratch) {
+    static_assert(!Team::cooperative, "MuJoCo's convention has no team form");
+    return acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
   }
   // J_f in MuJoCo's generalized forces, u_mj = C u_pin: the free joints' linear rows turned into the
   // world (scratch: nq values)
@@ -178,18 +201,6 @@ RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, co
 }
 
 // C (r x c) = A (r x n) B (n x c), row-major; C may not alias A or B
-template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, int n, int c) {
-  for (int i = 0; i < r; ++i) {
-    S* Ci = C + i * c;
-    for (int j = 0; j < c; ++j) Ci[j] = S(0);
-    for (int k = 0; k < n; ++k) {
-      const S a = A[i * n + k];
-      const S* Bk = B + k * c;
-      for (int j = 0; j < c; ++j) Ci[j] += a * Bk[j];
-    }
-  }
-}
-
 // x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major) in the tangent of the
 // convention Conv; with dX_df (2nv x 6nb, may be null) also ∂x⁺/∂f_ext,
 // column 6b + c for component c of body b's wrench. false if M is not PD.
@@ -198,10 +209,14 @@ template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, in
 // it acts as, Fu J_f(q_s) (Conv::force_map), the only input whose map
 // depends on the stage's configuration. The δf columns do not change the
 // others: every product computes each column on its own.
-template <typename Conv, typename S>
+// Written for a team (model/team.hpp): one thread (InlineTeam, the default)
+// or a GPU team kernel's threads, which split each stage's ∇FD and every
+// elementwise pass and product; the retractions and their Jacobians stay on
+// one thread. Both give the same results.
+template <typename Conv, typename S, typename Team = InlineTeam>
 RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
                                      const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* AB,
-                                     S* dX_df, S* scratch) {
+                                     S* dX_df, S* scratch, const Team& t = Team{}) {
   const int nq = m.nq, nv = m.nv, n3 = 3 * nv, nf = dX_df ? 6 * m.nb : 0, nc = n3 + nf;
   const long nn = static_cast<long>(nv) * nv, nd = static_cast<long>(nv) * nc;
   S* qs = scratch;
@@ -230,44 +245,41 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
 
   // the stage derivatives of the acceleration: Da = Fq Dq + Fv Dv + [0 0 Fu Fu J_f]
   auto stage_acceleration = [&](const S* qq, const S* vv) -> bool {
-    if (!Conv::acceleration_derivatives(m, w, qq, vv, u, fext, gravity, as, Fq, Fv, Fu, cs)) return false;
-    matmul(Fq, Dq, Da, nv, nv, nc);
-    matmul(Fv, Dv, T1, nv, nv, nc);
-    for (long k = 0; k < nd; ++k) Da[k] += T1[k];
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) Da[r * nc + 2 * nv + c] += Fu[r * nv + c];
+    if (!Conv::acceleration_derivatives(t, m, w, qq, vv, u, fext, gravity, as, Fq, Fv, Fu, cs)) return false;
+    matmul(t, Fq, Dq, Da, nv, nv, nc);
+    matmul(t, Fv, Dv, T1, nv, nv, nc);
+    t.each(nd, [&](long k) { Da[k] += T1[k]; });
+    t.each2(nv, nv, [&](long r, long c) { Da[r * nc + 2 * nv + c] += Fu[r * nv + c]; });
     if (nf) {
-      Conv::force_map(m, w, qq, Jf, cs);
-      matmul(Fu, Jf, T1, nv, nv, nf);
-      for (int r = 0; r < nv; ++r)
-        for (int c = 0; c < nf; ++c) Da[r * nc + n3 + c] += T1[r * nf + c];
+      t.one([&] { Conv::force_map(m, w, qq, Jf, cs); });
+      matmul(t, Fu, Jf, T1, nv, nv, nf);
+      t.each2(nv, nf, [&](long r, long c) { Da[r * nc + n3 + c] += T1[r * nf + c]; });
     }
     return true;
   };
   // ∂(q ⊕ w) for a step w with derivative Dw: Jq [1 0 0] + Jv Dw, written to out
   auto retract_derivative = [&](const S* w_step, const S* Dw, S* out) {
-    Conv::dretract(m, q, w_step, 0, Jq);
-    Conv::dretract(m, q, w_step, 1, Jv);
-    matmul(Jv, Dw, out, nv, nv, nc);
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) out[r * nc + c] += Jq[r * nv + c];
+    t.one([&] {
+      Conv::dretract(m, q, w_step, 0, Jq);
+      Conv::dretract(m, q, w_step, 1, Jv);
+    });
+    matmul(t, Jv, Dw, out, nv, nv, nc);
+    t.each2(nv, nv, [&](long r, long c) { out[r * nc + c] += Jq[r * nv + c]; });
   };
   auto identity_block = [&](S* D, int block) {
-    for (long k = 0; k < nd; ++k) D[k] = S(0);
-    for (int r = 0; r < nv; ++r) D[r * nc + block * nv + r] = S(1);
+    t.each(nd, [&](long k) { D[k] = S(0); });
+    t.each(nv, [&](long r) { D[r * nc + block * nv + r] = S(1); });
   };
   // rows r of ∂q⁺ (Dq_next) and ∂v⁺ (Dv_next): AB's columns and dX_df's
   auto write_outputs = [&](const S* Dq_next, const S* Dv_next) {
-    for (int r = 0; r < nv; ++r) {
-      for (int c = 0; c < n3; ++c) {
-        AB[r * n3 + c] = Dq_next[r * nc + c];
-        AB[(nv + r) * n3 + c] = Dv_next[r * nc + c];
-      }
-      for (int c = 0; c < nf; ++c) {
-        dX_df[r * nf + c] = Dq_next[r * nc + n3 + c];
-        dX_df[(nv + r) * nf + c] = Dv_next[r * nc + n3 + c];
-      }
-    }
+    t.each2(nv, n3, [&](long r, long c) {
+      AB[r * n3 + c] = Dq_next[r * nc + c];
+      AB[(nv + r) * n3 + c] = Dv_next[r * nc + c];
+    });
+    t.each2(nv, nf, [&](long r, long c) {
+      dX_df[r * nf + c] = Dq_next[r * nc + n3 + c];
+      dX_df[(nv + r) * nf + c] = Dv_next[r * nc + n3 + c];
+    });
   };
 
   // stage 1 (every scheme): q, v, a(q, v)
@@ -276,23 +288,21 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
   if (!stage_acceleration(q, v)) return false;
 
   if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
-    // v⁺ = v + dt a
-    for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
-    for (long k = 0; k < nd; ++k) Dstep[k] = dt * Da[k];  // ∂v⁺ - ∂v
-    for (int r = 0; r < nv; ++r) Dstep[r * nc + nv + r] += S(1);
+    // v⁺ = v + dt a; ∂v⁺ - ∂v
+    t.each(nv, [&](long k) { v_next[k] = v[k] + dt * as[k]; });
+    t.each(nd, [&](long k) { Dstep[k] = dt * Da[k]; });
+    t.each(nv, [&](long r) { Dstep[r * nc + nv + r] += S(1); });
     // step w and ∂w
-    for (int k = 0; k < nv; ++k)
+    t.each(nv, [&](long k) {
       step[k] = type == kEuler ? dt * v[k]
               : type == kSemiImplicitEuler ? dt * v_next[k]
               : dt * v[k] + S(0.5) * dt * dt * as[k];
-    if (type == kEuler) {
-      for (long k = 0; k < nd; ++k) T2[k] = dt * Dv[k];
-    } else if (type == kSemiImplicitEuler) {
-      for (long k = 0; k < nd; ++k) T2[k] = dt * Dstep[k];
-    } else {
-      for (long k = 0; k < nd; ++k) T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
-    }
-    Conv::retract(m, q, step, q_next);
+    });
+    t.each(nd, [&](long k) {
+      T2[k] = type == kEuler ? dt * Dv[k] : type == kSemiImplicitEuler ? dt * Dstep[k]
+            : dt * Dv[k] + S(0.5) * dt * dt * Da[k];
+    });
+    t.one([&] { Conv::retract(m, q, step, q_next); });
     retract_derivative(step, T2, T1);
     write_outputs(T1, Dstep);
     return true;
@@ -300,31 +310,29 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
 
   // full-state stages
   const Tableau T = tableau(type);
-  for (int k = 0; k < nv; ++k) vsum[k] = S(T.b[0]) * v[k], asum[k] = S(T.b[0]) * as[k];
-  for (long k = 0; k < nd; ++k) Dvsum[k] = S(T.b[0]) * Dv[k], Dasum[k] = S(T.b[0]) * Da[k];
-  for (int k = 0; k < nv; ++k) vs[k] = v[k];
+  t.each(nv, [&](long k) { vsum[k] = S(T.b[0]) * v[k], asum[k] = S(T.b[0]) * as[k], vs[k] = v[k]; });
+  t.each(nd, [&](long k) { Dvsum[k] = S(T.b[0]) * Dv[k], Dasum[k] = S(T.b[0]) * Da[k]; });
   for (int s = 1; s < T.stages; ++s) {
     const S c = S(T.c[s]) * dt;
     // q_s = q ⊕ c v_(s-1), v_s = v + c a_(s-1)
-    for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
-    for (long k = 0; k < nd; ++k) T2[k] = c * Dv[k];
-    Conv::retract(m, q, step, qs);
+    t.each(nv, [&](long k) { step[k] = c * vs[k]; });
+    t.each(nd, [&](long k) { T2[k] = c * Dv[k]; });
+    t.one([&] { Conv::retract(m, q, step, qs); });
     retract_derivative(step, T2, Dq);
-    for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
-    for (long k = 0; k < nd; ++k) Dv[k] = c * Da[k];
-    for (int r = 0; r < nv; ++r) Dv[r * nc + nv + r] += S(1);
+    t.each(nv, [&](long k) { vs[k] = v[k] + c * as[k]; });
+    t.each(nd, [&](long k) { Dv[k] = c * Da[k]; });
+    t.each(nv, [&](long r) { Dv[r * nc + nv + r] += S(1); });
     if (!stage_acceleration(qs, vs)) return false;
     const S b = S(T.b[s]);
-    for (int k = 0; k < nv; ++k) vsum[k] += b * vs[k], asum[k] += b * as[k];
-    for (long k = 0; k < nd; ++k) Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k];
+    t.each(nv, [&](long k) { vsum[k] += b * vs[k], asum[k] += b * as[k]; });
+    t.each(nd, [&](long k) { Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k]; });
   }
   // q⁺ = q ⊕ dt Σ b v_s, v⁺ = v + dt Σ b a_s
-  for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
-  for (long k = 0; k < nd; ++k) T2[k] = dt * Dvsum[k];
-  Conv::retract(m, q, step, q_next);
+  t.each(nv, [&](long k) { step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k]; });
+  t.each(nd, [&](long k) { T2[k] = dt * Dvsum[k]; });
+  t.one([&] { Conv::retract(m, q, step, q_next); });
   retract_derivative(step, T2, T1);
-  for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nc; ++c) Dv[r * nc + c] = dt * Dasum[r * nc + c] + (c == nv + r ? S(1) : S(0));
+  t.each2(nv, nc, [&](long r, long c) { Dv[r * nc + c] = dt * Dasum[r * nc + c] + (c == nv + r ? S(1) : S(0)); });
   write_outputs(T1, Dv);
   return true;
 }
