@@ -14,7 +14,7 @@ and scratch) forced into global memory and into the block's shared memory
 batch runs in at most three waves there; docs/cuda.md).
 
 With --kernels: two more resident columns, the operations that have a team
-kernel (∇ID, ∇FD: a block of threads per sample) forced to the sample-per-
+kernel (∇ID, ∇FD, the step gradient: a block of threads per sample) forced to the sample-per-
 thread kernel and to the team kernel (RBDKIT_CUDA_KERNEL; the default, "auto",
 picks the team kernel; docs/cuda.md, "Team kernels"); "-" for the others.
 
@@ -46,7 +46,7 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 # the operations with a team kernel (src/cuda/team_kernels.cuh; --kernels)
-TEAM_OPS = ("inverse_dynamics_gradient", "forward_dynamics_gradient")
+TEAM_OPS = ("inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient")
 
 
 def device_module(choice="any"):

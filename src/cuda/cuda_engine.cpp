@@ -98,6 +98,7 @@ struct CudaEngine::Impl {
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
   std::string kernel = "auto";  // set_kernel
   std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample, 0: none
+  std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
   cuda::DeviceLimits limits{};
   std::mutex call;
   std::vector<int> status_host;
@@ -116,8 +117,10 @@ struct CudaEngine::Impl {
       work_memory = work_memory_from_env();
       if (const char* k = std::getenv("RBDKIT_CUDA_KERNEL"); k && *k) kernel = checked_kernel(k, "RBDKIT_CUDA_KERNEL");
       team_extra.assign(ops::op_table().size(), 0);
-      if (d == "float64") cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data());
-      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data());
+      team_per_sm.assign(ops::op_table().size(), 0);
+      if (d == "float64")
+        cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data());
+      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data());
       failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
       // the model's bodies in the engine's scalar, uploaded once; the failure flag, cleared once
       if (d == "float64") upload_bodies(model.bodies_as<double>());
@@ -149,13 +152,15 @@ struct CudaEngine::Impl {
   template <typename T> [[noreturn]] void fail_inputs(const ops::OpSpec& op, const ops::OpCall& c,
                                                       const std::vector<long>& samples);
   // the team kernel (team_kernels.cuh) where the op has one, on a model without mimic joints: asked
-  // for, or (auto) while the batch is small for the GPU (at most 8 samples per SM: a sample per
-  // thread leaves the GPU idle), or where nv³ products dominate one thread's chain (nv >= 16). On an
-  // H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to B = 1024 (8 per SM) and slower
-  // from B = 4096 on, and faster on floating Atlas at every B
+  // for, or (auto) while the batch is small for the GPU (at most the op's per_sm samples per SM: a
+  // sample per thread leaves the GPU idle), or where nv³ products dominate one thread's chain
+  // (nv >= 16). On an H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to 8 samples
+  // per SM for ∇ID and ∇FD and up to 32 for the rk4 step's gradient, slower past them, and faster on
+  // floating Atlas at every B
   bool uses_team(int op, long B) const {
     if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
-    return kernel == "team" || B <= 8L * std::max(limits.multiprocessors, 1) || model.nv >= 16;
+    return kernel == "team" || B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
+           model.nv >= 16;
   }
   static std::string checked_kernel(const std::string& k, const char* what) {
     if (k != "auto" && k != "team" && k != "sample")

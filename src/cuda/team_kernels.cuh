@@ -99,7 +99,9 @@ struct SerialTeam {
 };
 
 // ---- the team operations: TeamOp<Op>::run(team, m, w, a) computes Op::run's outputs, with
-// team.extra: extra_bytes(nb, nv) bytes (a multiple of 16) after the workspace and the op's scratch
+// team.extra: extra_bytes(nb, nv) bytes (a multiple of 16) after the workspace and the op's scratch.
+// per_sm: up to how many samples per SM the engine's auto choice takes the team kernel on a small
+// model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team)
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
 };
@@ -108,6 +110,7 @@ template <typename Op> struct TeamOp {
 // thread, then each body's entries side by side
 template <> struct TeamOp<ops::InverseDynamicsGradient> {
   static constexpr bool available = true;
+  static constexpr int per_sm = 8;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int nv) {
     return workspace_array_bytes<T>(2ul * nv * nv);
   }
@@ -134,6 +137,7 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
 // ∂qdd/∂q and ∂qdd/∂qd = -M⁻¹ ∂ID/∂(q, qd) at qdd = FD: aba_derivatives_team (aba_derivatives.hpp)
 template <> struct TeamOp<ops::ForwardDynamicsGradient> {
   static constexpr bool available = true;
+  static constexpr int per_sm = 8;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv);
   }
@@ -152,6 +156,7 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
 // products an entry per index. MuJoCo's convention runs the registry's kernel on one thread of the team
 template <typename Op> struct TeamStep {
   static constexpr bool available = true;
+  static constexpr int per_sm = 32;  // (four ∇FD and their products per sample: more work to split)
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + 16;
   }
@@ -238,10 +243,16 @@ template <typename Op, typename T> void interpret_team_op(const DeviceCall<T>& c
   }
 }
 
-// per registered operation (ops::AllOps' order): 0 without a team kernel, else its extra bytes
-template <typename T, typename... Op> void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* out) {
+template <typename Op> constexpr int team_per_sm() {
+  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::per_sm;
+  else return 0;
+}
+
+// per registered operation (ops::AllOps' order): its team's extra bytes (0: no team kernel) and per_sm
+template <typename T, typename... Op>
+void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm) {
   int k = 0;
-  ((out[k++] = team_extra_bytes<Op, T>(nb, nv)), ...);
+  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), ++k), ...);
 }
 
 }  // namespace cuda

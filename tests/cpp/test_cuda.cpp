@@ -205,11 +205,17 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       const int id = ops::find_op(name);
       const ops::OpSpec& op = *ops::op_table()[id].spec;
       const bool step = std::string(op.family) == "integrators";
-      // auto: the team on a small batch (at most 8 per SM: 32 on the interpret device), or when
-      // nv >= 16; a mimic model keeps the sample kernel whatever is asked
+      // auto: the team on a small batch (at most 8 per SM, 32 for a step: 32 or 128 samples on the
+      // interpret device's 4 SMs), or when nv >= 16; a mimic model keeps the sample kernel whatever is
+      // asked
       EXPECT_EQ(p64->cuda()->kernel(), "auto");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), m.has_mimic() ? "sample" : "team");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() || m.nv < 16 ? "sample" : "team");
+      if (!on_device()) {  // the per-SM bound, at the interpret device's 4 SMs
+        const long bound = 4 * (step ? 32 : 8);
+        EXPECT_EQ(p64->cuda()->kernel_for(id, bound), m.has_mimic() ? "sample" : "team");
+        EXPECT_EQ(p64->cuda()->kernel_for(id, bound + 1), m.has_mimic() || m.nv < 16 ? "sample" : "team");
+      }
       p64->cuda()->set_kernel("team");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() ? "sample" : "team");
       p64->cuda()->set_kernel("sample");
