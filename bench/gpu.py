@@ -14,9 +14,10 @@ and scratch) forced into global memory and into the block's shared memory
 batch runs in at most three waves there; docs/cuda.md).
 
 With --kernels: two more resident columns, the operations that have a team
-kernel (∇ID, ∇FD, the step gradient: a block of threads per sample) forced to the sample-per-
-thread kernel and to the team kernel (RBDKIT_CUDA_KERNEL; the default, "auto",
-picks the team kernel; docs/cuda.md, "Team kernels"); "-" for the others.
+kernel (∇ID, ∇FD, the step gradient: a block of threads per sample) forced
+to the sample-per-thread kernel and to the team kernel (RBDKIT_CUDA_KERNEL;
+the default, "auto", picks by B per SM and by nv; docs/cuda.md, "Team
+kernels"); "-" for the others.
 
 With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
 N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:

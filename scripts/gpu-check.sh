@@ -62,9 +62,10 @@ fi
 
 # ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global and shared
 # memory, launch errors); racecheck (shared-memory races: each thread's work slice must not overlap
-# another's, and the cooperative kernels will share memory within a block)
+# another's, and a team kernel's threads share their sample's); synccheck (a team kernel's barriers
+# reached by every thread of its block)
 if command -v compute-sanitizer >/dev/null; then
-  for tool in memcheck racecheck; do
+  for tool in memcheck racecheck synccheck; do
     step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 timeout "${SANITIZER_TIMEOUT:-300}" \
       compute-sanitizer --tool "$tool" \
       --error-exitcode 1 build/gpu/tests/cpp/rbdkit_tests \

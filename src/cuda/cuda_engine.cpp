@@ -157,10 +157,19 @@ struct CudaEngine::Impl {
   // (nv >= 16). On an H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to 8 samples
   // per SM for ∇ID and ∇FD and up to 32 for the rk4 step's gradient, slower past them, and faster on
   // floating Atlas at every B
-  bool uses_team(int op, long B) const {
+  // A step in MuJoCo's convention has no team form (its team runs it on one thread): auto keeps the
+  // sample kernel for it, `convention` being the call's (ops::OutputConvention)
+  bool uses_team(int op, long B, int convention) const {
     if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
-    return kernel == "team" || B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
-           model.nv >= 16;
+    if (kernel == "team") return true;
+    if (convention != kPinocchioConvention) return false;
+    return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) || model.nv >= 16;
+  }
+  // the call's output convention (Pinocchio's for an operation without one)
+  static int call_convention(const ops::OpSpec& op, const ops::OpCall& c) {
+    for (int k = 0; k < op.n_args; ++k)
+      if (op.args[k].kind == ops::kConvention) return c.choice[k];
+    return kPinocchioConvention;
   }
   static std::string checked_kernel(const std::string& k, const char* what) {
     if (k != "auto" && k != "team" && k != "sample")
@@ -185,7 +194,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   dc.model = {m.nb(), m.nq, m.nv, m.has_mimic() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
   dc.layout = ops::workspace_layout(op, m);
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
-  const bool team = uses_team(op_id, B);
+  const bool team = uses_team(op_id, B, call_convention(op, c));
   const unsigned long scratch_bytes = sizeof(T) * ops::scratch_values(op, m);
   // a team's slice: the workspace, the op's scratch, the team's extra at the end (team_sample)
   dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? round16(scratch_bytes) + team_extra[op_id] : scratch_bytes)));
@@ -422,11 +431,11 @@ std::string CudaEngine::kernel() const {
   std::lock_guard<std::mutex> lk(impl_->call);
   return impl_->kernel;
 }
-std::string CudaEngine::kernel_for(int op, long B) const {
+std::string CudaEngine::kernel_for(int op, long B, int convention) const {
   if (op < 0 || op >= static_cast<int>(ops::op_table().size()))
     throw std::invalid_argument("kernel_for: unknown operation id " + std::to_string(op));
   std::lock_guard<std::mutex> lk(impl_->call);
-  return impl_->uses_team(op, B) ? "team" : "sample";
+  return impl_->uses_team(op, B, convention) ? "team" : "sample";
 }
 unsigned long CudaEngine::device_bytes() const {
   return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes + impl_->flag.bytes;

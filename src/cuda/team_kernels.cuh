@@ -26,6 +26,9 @@
 // (kernels.cuh) for the others.
 #pragma once
 
+#include <stdexcept>
+#include <string>
+
 #include "kernels.cuh"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/model/team.hpp"
@@ -153,7 +156,8 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
 
 // the integrator step and its gradient (integrators.hpp), every scheme, with or without ∂x⁺/∂f_ext:
 // integrator_gradient_with on the team, each stage's ∇FD by aba_derivatives_team and the chain rule's
-// products an entry per index. MuJoCo's convention runs the registry's kernel on one thread of the team
+// products an entry per index. MuJoCo's convention has no team form: where the team is asked for
+// (the engine's auto does not), the registry's kernel runs on one thread of the team
 template <typename Op> struct TeamStep {
   static constexpr bool available = true;
   static constexpr int per_sm = 32;  // (four ∇FD and their products per sample: more work to split)
@@ -232,7 +236,10 @@ __global__ void __launch_bounds__(kTeam) team_kernel(DeviceCall<T> c, const Body
 
 // Op's team launch in interpret mode: each block's samples, a team at a time
 template <typename Op, typename T> void interpret_team_op(const DeviceCall<T>& c, LaunchShape shape) {
-  if constexpr (TeamOp<Op>::available) {
+  if constexpr (!TeamOp<Op>::available) {
+    (void)c, (void)shape;
+    throw std::logic_error(std::string(Op::spec.name) + ": a team launch of an operation without a team kernel");
+  } else {
     const SerialTeam t;
     emulate_launch(LaunchShape{shape.blocks, 1, shape.shared_bytes, shape.shared_limit},
                    [&](long b, int, unsigned char* shared) {

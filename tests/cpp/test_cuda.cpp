@@ -191,7 +191,8 @@ TEST(Cuda, WorkMemoriesAgree) {
 // the team kernels (src/cuda/team_kernels.cuh: ∇ID, ∇FD, the integrator step's gradient with and
 // without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as the sample-per-thread
 // kernels are: every test model, both dtypes, the work in shared and in global memory, every output or
-// some, f_ext, every integrator scheme in both conventions (MuJoCo's on one thread of the team);
+// some, f_ext, every integrator scheme in both conventions (MuJoCo's, asked for, on one thread of the
+// team);
 // mimic models keep the sample kernel; device arrays' values checked by the team
 TEST(Cuda, TeamKernelsEqualCpu) {
   for (const ModelCase& mc : rbd_test::all_cases()) {
@@ -216,6 +217,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
         EXPECT_EQ(p64->cuda()->kernel_for(id, bound), m.has_mimic() ? "sample" : "team");
         EXPECT_EQ(p64->cuda()->kernel_for(id, bound + 1), m.has_mimic() || m.nv < 16 ? "sample" : "team");
       }
+      if (step) EXPECT_EQ(p64->cuda()->kernel_for(id, 5, 1), "sample");  // (MuJoCo's convention: no team form)
       p64->cuda()->set_kernel("team");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() ? "sample" : "team");
       p64->cuda()->set_kernel("sample");
@@ -233,6 +235,9 @@ TEST(Cuda, TeamKernelsEqualCpu) {
         SCOPED_TRACE(mask);
         SCOPED_TRACE(variant);
         if (step) in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
+        // MuJoCo's convention: the team asked for, which runs the step on one of its threads
+        const char* kernel = step && variant >= 6 ? "team" : "auto";
+        p64->cuda()->set_kernel(kernel), p32->cuda()->set_kernel(kernel);
         const std::vector<double> ref = run<double>(serial, id, in, mask);
         for (const char* where : {"shared", "global"}) {
           p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);
@@ -245,6 +250,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
           }
         }
         p64->cuda()->set_work_memory("auto"), p32->cuda()->set_work_memory("auto");
+        p64->cuda()->set_kernel("auto"), p32->cuda()->set_kernel("auto");
       }
       if (on_device()) continue;
       // a device array's bad value: the team's check names it, as the host's does

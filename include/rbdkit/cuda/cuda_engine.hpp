@@ -88,12 +88,14 @@ class CudaEngine {
   // kernels"): "team", "sample" (one thread per sample, as every other
   // operation), or "auto" (the default: the team kernel on a model without
   // mimic joints, for a batch of at most 8 samples per SM (32 for a step), or
-  // at any B when nv >= 16).
+  // at any B when nv >= 16; a step in MuJoCo's convention keeps the sample
+  // kernel unless the team is asked for).
   // The environment variable RBDKIT_CUDA_KERNEL sets it when an engine is made
   void set_kernel(const std::string& which);
   std::string kernel() const;
-  // the kernel that computes registered operation `op` over B samples on this engine now: "team" or "sample"
-  std::string kernel_for(int op, long B) const;
+  // the kernel that computes registered operation `op` over B samples in the output convention
+  // `convention` (OutputConvention; 0: Pinocchio's) on this engine now: "team" or "sample"
+  std::string kernel_for(int op, long B, int convention = 0) const;
   // device bytes the engine holds (work buffers, copies, the model)
   unsigned long device_bytes() const;
 

@@ -298,10 +298,13 @@ RBD_HD bool integrator_gradient_with(const ModelView<S>& m, Workspace<S>& w, int
               : type == kSemiImplicitEuler ? dt * v_next[k]
               : dt * v[k] + S(0.5) * dt * dt * as[k];
     });
-    t.each(nd, [&](long k) {
-      T2[k] = type == kEuler ? dt * Dv[k] : type == kSemiImplicitEuler ? dt * Dstep[k]
-            : dt * Dv[k] + S(0.5) * dt * dt * Da[k];
-    });
+    if (type == kEuler) {
+      t.each(nd, [&](long k) { T2[k] = dt * Dv[k]; });
+    } else if (type == kSemiImplicitEuler) {
+      t.each(nd, [&](long k) { T2[k] = dt * Dstep[k]; });
+    } else {
+      t.each(nd, [&](long k) { T2[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k]; });
+    }
     t.one([&] { Conv::retract(m, q, step, q_next); });
     retract_derivative(step, T2, T1);
     write_outputs(T1, Dstep);
