@@ -156,9 +156,8 @@ struct CudaEngine::Impl {
   // sample per thread leaves the GPU idle), or where nv³ products dominate one thread's chain
   // (nv >= 16). On an H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to 8 samples
   // per SM for ∇ID and ∇FD and up to 32 for the rk4 step's gradient, slower past them, and faster on
-  // floating Atlas at every B
-  // A step in MuJoCo's convention has no team form (its team runs it on one thread): auto keeps the
-  // sample kernel for it, `convention` being the call's (ops::OutputConvention)
+  // floating Atlas at every B. A step in MuJoCo's convention has no team form (its team runs it on
+  // one thread): auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
   bool uses_team(int op, long B, int convention) const {
     if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
     if (kernel == "team") return true;

@@ -6,9 +6,9 @@
 //                                            launch: blocks and threads run serially
 //                                            (RBDKIT_CUDA_INTERPRET=1, docs/cuda.md)
 // A kernel is written as "for each sample this thread owns" over a grid-stride
-// loop; a kernel with a barrier would be written as phases of such loops, and
-// the emulated launch runs a phase for every thread of a block before the
-// next one (emulate_launch below).
+// loop; a kernel with barriers is written as phases of such loops, which the
+// emulation runs for every thread of a block before the next one (the team
+// kernels of ∇ID, ∇FD and the steps: team_kernels.cuh).
 //
 // Layout (docs/cuda.md): inputs and outputs are the caller's row-major
 // (B x shape) arrays (an unbatched input has stride 0); each sample's work

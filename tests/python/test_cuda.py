@@ -153,6 +153,27 @@ def test_device_arrays_are_checked(interpret):
         h.crba(Strided(q))
 
 
+@pytest.mark.parametrize("robot", ["iiwa", "hyq_floating"])
+def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
+    # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ∇ID, ∇FD, the steps'
+    # gradients) or the sample-per-thread ones; each equals the CPU handle. A bad value is named
+    name, _, floating = robot.partition("_")
+    m = rbdkit.robots.load(name, floating_base=bool(floating))
+    cpu = rbdkit.Handle(m)
+    q, qd, tau = states(cpu, 5)
+    for kernel in ("team", "sample", "auto"):
+        monkeypatch.setenv("RBDKIT_CUDA_KERNEL", kernel)
+        h = rbdkit.Handle(m, backend="cuda")
+        for got, ref in ((h.forward_dynamics_gradient(q, qd, tau), cpu.forward_dynamics_gradient(q, qd, tau)),
+                         (h.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"),
+                          cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"))):
+            for g, r in zip(got, ref):
+                np.testing.assert_allclose(g, r, rtol=1e-10, atol=1e-10, err_msg=kernel)
+    monkeypatch.setenv("RBDKIT_CUDA_KERNEL", "warp")
+    with pytest.raises(ValueError, match="RBDKIT_CUDA_KERNEL: expected 'auto', 'team' or 'sample', got 'warp'"):
+        rbdkit.Handle(m, backend="cuda")
+
+
 def test_interpret_mode_refuses_gpu_arrays(monkeypatch):
     # interpret mode reads device arrays on the CPU: host memory behind __cuda_array_interface__ (the
     # stand-ins) is read, an array in a GPU's memory is refused by name (it would be read as host memory)

@@ -33,9 +33,9 @@ struct InlineTeam {
   template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const { f0(), f1(); }
 };
 
-// C (r x c) = A (r x n) B (n x c), row-major: one thread's row-by-row
-// accumulation, or one entry per index on a cooperative team (each entry
-// sums over n in the same order either way)
+// C (r x c) = A (r x n) B (n x c), row-major, C aliasing neither: one
+// thread's row-by-row accumulation, or one entry per index on a cooperative
+// team (each entry sums over n in the same order either way)
 template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, int n, int c) {
   for (int i = 0; i < r; ++i) {
     S* Ci = C + i * c;

@@ -200,7 +200,6 @@ RBD_HD bool integrator_step(const ModelView<S>& m, Workspace<S>& w, int type, co
   return integrator_step_with<PinocchioStep<S>>(m, w, type, q, v, u, fext, dt, gravity, q_next, v_next, scratch);
 }
 
-// C (r x c) = A (r x n) B (n x c), row-major; C may not alias A or B
 // x⁺ and AB = ∂x⁺/∂(x, u) (2nv x 3nv, row-major) in the tangent of the
 // convention Conv; with dX_df (2nv x 6nb, may be null) also ∂x⁺/∂f_ext,
 // column 6b + c for component c of body b's wrench. false if M is not PD.
