@@ -109,8 +109,7 @@ template <typename Op> struct TeamOp {
   static constexpr bool available = false;
 };
 
-// ∂ID/∂q and ∂ID/∂qd (rnea_derivatives.hpp): the forward pass and the subtree composites on one
-// thread, then each body's entries side by side
+// ∂ID/∂q and ∂ID/∂qd: rnea_derivatives_team (rnea_derivatives.hpp)
 template <> struct TeamOp<ops::InverseDynamicsGradient> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
@@ -122,12 +121,7 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
     const int nv = m.nv, n2 = nv * nv;
     T* dq = a.out[1] ? a.out[1] : reinterpret_cast<T*>(t.extra);
     T* dv = a.out[2] ? a.out[2] : reinterpret_cast<T*>(t.extra) + n2;
-    t.each(n2, [&](long k) { dq[k] = T(0), dv[k] = T(0); });
-    t.one([&] {
-      rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3]);
-      rnea_derivatives_composites(m, w);
-    });
-    t.each(m.nb, [&](long i) { rnea_derivatives_body(m, w, static_cast<int>(i), dq, dv, static_cast<T*>(nullptr)); });
+    rnea_derivatives_team(t, m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], dq, dv);
     if (a.out[0])  // dtau = [dtau_dq | dtau_dqd]
       t.each(2 * n2, [&](long k) {
         const int r = static_cast<int>(k / (2 * nv)), c = static_cast<int>(k % (2 * nv));

@@ -38,6 +38,16 @@ std::unique_ptr<rbd::Handle> interpret_handle(const Model& m, const std::string&
   return h;
 }
 
+// the message of the std::invalid_argument that f() throws ("" when it throws none)
+template <typename F> std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
 class CudaModels : public ::testing::TestWithParam<ModelCase> {};
 
 }  // namespace
@@ -104,12 +114,7 @@ TEST(Cuda, ChunkedLaunchesEqualOne) {
     if (!on_device()) {
       Inputs bad = in;
       bad.arrays[0][8 * hyq.nq + 8] = NAN;
-      std::string msg;
-      try {
-        run<double>(*hp, id, bad, ~0u, true);
-      } catch (const std::invalid_argument& e) {
-        msg = e.what();
-      }
+      const std::string msg = error_of([&] { run<double>(*hp, id, bad, ~0u, true); });
       EXPECT_NE(msg.find("q[8]"), std::string::npos) << msg;
     }
     hp->cuda()->set_max_work_bytes(0);
@@ -126,12 +131,7 @@ TEST(Cuda, FailedSamplesAreNamed) {
   Inputs in = make_inputs(iiwa, *ops::op_table()[id].spec, 6, 2, false);
   for (int s : {3, 5})
     for (int k = 0; k < iiwa.nq; ++k) in.arrays[0][s * iiwa.nq + k] = 0;  // stretched out: singular
-  std::string msg;
-  try {
-    run<double>(h, id, in);
-  } catch (const std::invalid_argument& e) {
-    msg = e.what();
-  }
+  const std::string msg = error_of([&] { run<double>(h, id, in); });
   EXPECT_EQ(msg.rfind("osc_inertia: J M⁻¹ Jᵀ of an end effector is singular at sample 3", 0), 0u) << msg;
   EXPECT_NE(msg.find("[backend='cuda': 2 of 6 samples, samples 3, 5]"), std::string::npos) << msg;
 }
@@ -146,12 +146,7 @@ TEST(Cuda, ChecksAreTheCpus) {
   in.arrays[0][2 * iiwa.nq + 1] = NAN;
   for (bool device : {false, true}) {
     if (device && on_device()) continue;  // host memory is not the device's
-    std::string msg;
-    try {
-      run<double>(h, id, in, ~0u, device);
-    } catch (const std::invalid_argument& e) {
-      msg = e.what();
-    }
+    const std::string msg = error_of([&] { run<double>(h, id, in, ~0u, device); });
     EXPECT_NE(msg.find("q[2]"), std::string::npos) << msg;
   }
 }
@@ -256,12 +251,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       // a device array's bad value: the team's check names it, as the host's does
       Inputs bad = in;
       bad.arrays[1][3 * m.nv] = NAN;
-      std::string msg;
-      try {
-        run<double>(*p64, id, bad, ~0u, true);
-      } catch (const std::invalid_argument& e) {
-        msg = e.what();
-      }
+      const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
       EXPECT_NE(msg.find("qd[3]"), std::string::npos) << msg;
     }
   }

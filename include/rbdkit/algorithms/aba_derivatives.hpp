@@ -72,8 +72,8 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 
 // aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
 // for a model without mimic joints: ABA for qdd beside M⁻¹, each on one thread and its own workspace
-// (ABA's, linear, in `extra`); the derivative passes on M⁻¹'s placements, the composites on one thread
-// and each body's entries side by side (rnea_derivatives_body); then every entry of the two products
+// (ABA's, linear, in `extra`); the derivative passes on M⁻¹'s placements (rnea_derivatives_team); then
+// every entry of the two products
 // -M⁻¹ ∂ID. The same results as aba_derivatives (each entry's sums in the same order), M⁻¹ left in
 // w.dense as there. extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
 template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {
@@ -90,14 +90,9 @@ RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace
   if (!qdd) qdd = dv + n2;
   int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
   const S* Minv = w.dense;
-  t.each(n2, [&](long k) { dq[k] = S(0), dv[k] = S(0); });
   t.two([&] { ok[0] = aba(m, wa, q, qd, tau, fext, gravity, qdd); }, [&] { ok[1] = minv(m, w, q, true, w.dense); });
   if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
-  t.one([&] {
-    rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, true);
-    rnea_derivatives_composites(m, w);
-  });
-  t.each(m.nb, [&](long i) { rnea_derivatives_body(m, w, static_cast<int>(i), dq, dv, static_cast<S*>(nullptr)); });
+  rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
   t.each(2 * n2, [&](long k) {
     const S* D = k < n2 ? dq : dv;
     const int r = static_cast<int>(k % n2) / nv, c = static_cast<int>(k % nv);

@@ -137,6 +137,23 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
   rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
 }
 
+// rnea_derivatives on a team of threads (model/team.hpp; the GPU's team kernels), for a model without
+// mimic joints: the forward pass and the composites on one thread, then each body's entries side by
+// side (bodies own disjoint entries there). The same results; tau is not computed
+template <typename S, typename Team>
+RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
+                                  const S* qdd, const S* fext, S gravity, S* dtau_dq, S* dtau_dqd,
+                                  bool placed = false) {
+  t.each(static_cast<long>(m.nv) * m.nv, [&](long k) { dtau_dq[k] = S(0), dtau_dqd[k] = S(0); });
+  t.one([&] {
+    rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed);
+    rnea_derivatives_composites(m, w);
+  });
+  t.each(m.nb, [&](long i) {
+    rnea_derivatives_body(m, w, static_cast<int>(i), dtau_dq, dtau_dqd, static_cast<S*>(nullptr));
+  });
+}
+
 // per-body DoF columns (6 per body, as w.S_world) <-> an (nb x 6 x 6) array whose
 // [b][r][a] is row r of column a of body b (zeros beyond the joint's nv): the
 // per-pass helpers' layout
