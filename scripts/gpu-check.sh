@@ -90,6 +90,8 @@ if [[ "$prebuilt" == 1 ]] || "$PY" -c "import numpy, nanobind, scikit_build_core
   if "$PY" -c "import torch; assert torch.cuda.is_available()" 2>/dev/null; then
     step "rbdkit.torch on CUDA tensors" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q -p no:cacheprovider \
       tests/python/test_torch.py -k cuda
+    # where a B = 1 call's time goes (issue 17's single-call target); its table is printed at the end
+    step "bench/gpu_call_cost.py" bash -c "'$PY' bench/gpu_call_cost.py > build/gpu/call_cost.md"
   fi
   if "$PY" -c "import jax; assert jax.default_backend() == 'gpu'" 2>/dev/null; then
     step "rbdkit.jax on GPU arrays (XLA's CUDA platform)" env RBDKIT_TEST_CUDA_DEVICE=1 "$PY" -m pytest -q \
@@ -107,5 +109,6 @@ echo "| step | result |"
 echo "|---|---|"
 printf '%s\n' "${summary[@]}"
 [[ -f build/gpu/stage_latency.md ]] && { echo; cat build/gpu/stage_latency.md; }
+[[ -f build/gpu/call_cost.md ]] && { echo; cat build/gpu/call_cost.md; }
 [[ -f build/gpu/gpu_bench.md ]] && { echo; cat build/gpu/gpu_bench.md; }
 exit $status

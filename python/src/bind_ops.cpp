@@ -347,13 +347,125 @@ struct DeviceArray {
   unsigned long stream = 0;  // the interface's stream (v3): its producer's work must finish first; 0: none
 };
 
+// PyTorch's tensors, read directly: a tensor's __cuda_array_interface__ is a Python property that
+// builds a dict (about 4 µs on a 2 GHz core), and a call read it twice per array, most of a B = 1
+// call's time outside its kernel. A torch.Tensor (the class itself, not a subclass) on a GPU is read
+// through its own attributes (is_cuda, requires_grad, dtype, shape, is_contiguous(), data_ptr()),
+// and its outputs made by torch.empty; one of another dtype or rank, or a strided one, goes through
+// the interface, whose checks name the failure; one that requires grad is refused by name. torch is
+// never imported here: only a process that imported it can pass its tensors.
+struct TorchApi {
+  PyObject* tensor = nullptr;  // the type torch.Tensor
+  PyObject *f32 = nullptr, *f64 = nullptr, *empty = nullptr;
+  PyObject* empty_keywords = nullptr;  // ("dtype", "device")
+  PyObject *is_cuda = nullptr, *requires_grad = nullptr, *dtype = nullptr, *shape = nullptr,
+           *is_contiguous = nullptr, *data_ptr = nullptr, *device = nullptr;
+};
+
+// the attributes above once torch is imported; null before (or if torch lacks one of them)
+const TorchApi* torch_api() {
+  static TorchApi api;
+  static bool failed = false;
+  if (api.tensor) return &api;
+  if (failed) return nullptr;
+  PyObject* torch = PyDict_GetItemString(PyImport_GetModuleDict(), "torch");  // (borrowed)
+  if (!torch) return nullptr;
+  TorchApi t;
+  t.tensor = PyObject_GetAttrString(torch, "Tensor");
+  t.f32 = PyObject_GetAttrString(torch, "float32");
+  t.f64 = PyObject_GetAttrString(torch, "float64");
+  t.empty = PyObject_GetAttrString(torch, "empty");
+  if (!t.tensor || !PyType_Check(t.tensor) || !t.f32 || !t.f64 || !t.empty) {
+    PyErr_Clear();  // (a torch without them, or one still importing: the interface, always)
+    failed = true;
+    return nullptr;
+  }
+  t.is_cuda = PyUnicode_InternFromString("is_cuda"), t.requires_grad = PyUnicode_InternFromString("requires_grad");
+  t.dtype = PyUnicode_InternFromString("dtype"), t.shape = PyUnicode_InternFromString("shape");
+  t.is_contiguous = PyUnicode_InternFromString("is_contiguous"), t.data_ptr = PyUnicode_InternFromString("data_ptr");
+  t.device = PyUnicode_InternFromString("device");
+  t.empty_keywords = PyTuple_Pack(2, t.dtype, t.device);
+  if (!t.empty_keywords) {
+    PyErr_Clear();
+    failed = true;
+    return nullptr;
+  }
+  api = t;
+  return &api;
+}
+
+// o's boolean attribute: 1, 0, or -1 with an exception set
+int attr_true(PyObject* o, PyObject* name) {
+  PyObject* v = PyObject_GetAttr(o, name);
+  if (!v) return -1;
+  const int r = PyObject_IsTrue(v);
+  Py_DECREF(v);
+  return r;
+}
+
+// o as a torch.Tensor: 0 another object (a subclass too), 1 a tensor in host memory, 2 one on a GPU,
+// -1 an error set
+int torch_tensor_kind(PyObject* o) {
+  const TorchApi* t = torch_api();
+  if (!t || reinterpret_cast<PyObject*>(Py_TYPE(o)) != t->tensor) return 0;
+  const int cuda = attr_true(o, t->is_cuda);
+  return cuda < 0 ? -1 : 1 + cuda;
+}
+
 bool has_device_interface(PyObject* o) {
-  return !PyArray_Check(o) && PyObject_HasAttrString(o, "__cuda_array_interface__");
+  if (PyArray_Check(o)) return false;
+  const int kind = torch_tensor_kind(o);
+  if (kind > 0) return kind == 2;
+  if (kind < 0) PyErr_Clear();  // (as hasattr would see it, below)
+  return PyObject_HasAttrString(o, "__cuda_array_interface__");
+}
+
+// a CUDA tensor of the handle's dtype, C-contiguous, of rank <= max_nd, into out: 1; 0: another
+// object or one that fails a check (the interface's path then names the failure); -1: an error set
+// (a tensor that requires grad, named)
+int torch_device_array(PyObject* o, const char* name, int type, int max_nd, DeviceArray& out) {
+  const int kind = torch_tensor_kind(o);
+  if (kind != 2) return kind < 0 ? -1 : 0;
+  const TorchApi* t = torch_api();
+  const int grad = attr_true(o, t->requires_grad);
+  if (grad != 0) {
+    if (grad > 0)
+      fail(PyExc_TypeError, std::string(name) + ": a tensor that requires grad (a Handle records no gradients): "
+                                                "pass it detach()ed, or call rbdkit.torch, whose operations do");
+    return -1;
+  }
+  PyObject* dtype = PyObject_GetAttr(o, t->dtype);
+  if (!dtype) return -1;
+  Py_DECREF(dtype);  // (compared by identity: torch's dtypes are singletons)
+  if (dtype != (type == NPY_FLOAT ? t->f32 : t->f64)) return 0;
+  PyObject* shape = PyObject_GetAttr(o, t->shape);
+  if (!shape) return -1;
+  const bool shape_ok = PyTuple_Check(shape) && PyTuple_GET_SIZE(shape) <= max_nd;
+  if (shape_ok) {
+    out.nd = static_cast<int>(PyTuple_GET_SIZE(shape));
+    for (int j = 0; j < out.nd; ++j) out.dims[j] = PyLong_AsSsize_t(PyTuple_GET_ITEM(shape, j));
+  }
+  Py_DECREF(shape);
+  if (PyErr_Occurred()) return -1;
+  if (!shape_ok) return 0;
+  PyObject* contiguous = PyObject_CallMethodNoArgs(o, t->is_contiguous);
+  if (!contiguous) return -1;
+  const int c = PyObject_IsTrue(contiguous);
+  Py_DECREF(contiguous);
+  if (c != 1) return c;
+  PyObject* ptr = PyObject_CallMethodNoArgs(o, t->data_ptr);
+  if (!ptr) return -1;
+  out.data = PyLong_AsVoidPtr(ptr);
+  Py_DECREF(ptr);
+  out.stream = 0;  // (as its interface: version 2, no stream; PyTorch works on the legacy default stream)
+  return PyErr_Occurred() ? -1 : 1;
 }
 
 // o's __cuda_array_interface__: C-contiguous, of the handle's dtype (typestr '<f8' / '<f4'), rank <= max_nd;
 // false with a TypeError / ValueError naming the argument
 bool as_device_array(PyObject* o, const char* name, int type, int max_nd, DeviceArray& out) {
+  const int fast = torch_device_array(o, name, type, max_nd, out);
+  if (fast != 0) return fast == 1;
   PyObject* cai = PyObject_GetAttrString(o, "__cuda_array_interface__");
   if (!cai) return false;
   // false with an exception naming the argument (cai released)
@@ -403,6 +515,15 @@ bool as_device_array(PyObject* o, const char* name, int type, int max_nd, Device
 
 // a new device array of `shape` and the handle's dtype, on proto's device, by proto's framework
 PyObject* device_empty(PyObject* proto, PyObject* shape, int type) {
+  const TorchApi* t = torch_api();
+  if (t && reinterpret_cast<PyObject*>(Py_TYPE(proto)) == t->tensor) {  // torch.empty(shape, dtype=, device=)
+    PyObject* device = PyObject_GetAttr(proto, t->device);
+    if (!device) return nullptr;
+    PyObject* args[3] = {shape, type == NPY_FLOAT ? t->f32 : t->f64, device};
+    PyObject* a = PyObject_Vectorcall(t->empty, args, 1, t->empty_keywords);
+    Py_DECREF(device);
+    return a;
+  }
   static PyObject* fn = nullptr;
   if (!fn) {
     PyObject* mod = PyImport_ImportModule("rbdkit._handle");

@@ -7,7 +7,8 @@
 //
 // A team kernel is written as phases (model/team.hpp): "for each index this
 // thread owns", ended by a barrier (Team::each), or one thread's serial pass
-// (Team::one), or two serial passes side by side on two warps (Team::two).
+// (Team::one), or two serial passes side by side on two warps (Team::two), or
+// a phased pass on the first warp beside a serial one (Team::beside).
 // What a phase hands to the next goes through memory (the sample's work slice
 // or its outputs); a local variable outside a phase must be the same on every
 // thread (sizes, pointers, a flag read back after a barrier). The same source
@@ -74,6 +75,8 @@ struct BlockTeam {
     (void)f0, (void)f1;
 #endif
   }
+  // f(sub) on the first warp, a team of its own (WarpTeam), beside g() on the second warp's first thread
+  template <typename F, typename G> RBD_HD void beside(F&& f, G&& g) const;
   // whether x[0..n) are all finite, on every thread (a vote, and a barrier)
   template <typename T> RBD_HD bool all_finite(const T* x, long n) const {
 #if defined(__CUDA_ARCH__)
@@ -87,6 +90,50 @@ struct BlockTeam {
   }
 };
 
+// the first warp of a BlockTeam as a team (BlockTeam::beside): its lanes, __syncwarp() between phases
+struct WarpTeam {
+  static constexpr bool cooperative = true;
+  unsigned char* extra = nullptr;
+  template <typename F> RBD_HD void each(long n, F&& f) const {
+#if defined(__CUDA_ARCH__)
+    for (long k = threadIdx.x % 32; k < n; k += 32) f(k);
+    __syncwarp();
+#else
+    (void)n, (void)f;
+#endif
+  }
+  template <typename F> RBD_HD void each2(long rows, long cols, F&& f) const {
+    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
+  }
+  template <typename F> RBD_HD void one(F&& f) const {
+#if defined(__CUDA_ARCH__)
+    if (threadIdx.x % 32 == 0) f();
+    __syncwarp();
+#else
+    (void)f;
+#endif
+  }
+  template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const {
+#if defined(__CUDA_ARCH__)
+    if (threadIdx.x % 32 == 0) f0();
+    else if (threadIdx.x % 32 == 16) f1();
+    __syncwarp();
+#else
+    (void)f0, (void)f1;
+#endif
+  }
+};
+
+template <typename F, typename G> RBD_HD void BlockTeam::beside(F&& f, G&& g) const {
+#if defined(__CUDA_ARCH__)
+  if (threadIdx.x < 32) f(WarpTeam{extra});
+  else if (threadIdx.x == 32) g();
+  __syncthreads();
+#else
+  (void)f, (void)g;
+#endif
+}
+
 struct SerialTeam {
   static constexpr bool cooperative = true;
   unsigned char* extra = nullptr;
@@ -98,6 +145,7 @@ struct SerialTeam {
   }
   template <typename F> void one(F&& f) const { f(); }
   template <typename F0, typename F1> void two(F0&& f0, F1&& f1) const { f1(), f0(); }
+  template <typename F, typename G> void beside(F&& f, G&& g) const { g(), f(*this); }
   template <typename T> bool all_finite(const T* x, long n) const { return cuda::all_finite(x, n); }
 };
 
@@ -107,6 +155,72 @@ struct SerialTeam {
 // model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team)
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
+};
+
+// ID and the per-body motion and forces: rnea_team (rnea.hpp), then the outputs an entry per index
+// (the accelerations without gravity, a chain of rotations, on one thread)
+template <> struct TeamOp<ops::InverseDynamics> {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }  // (unused)
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    rnea_team(t, m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], a.out[0]);
+    if (a.out[1] || a.out[3])
+      t.each(m.nb, [&](long i) {
+        if (a.out[1]) store(w.v[i], a.out[1] + 6 * i);
+        if (a.out[3]) store(w.f[i], a.out[3] + 6 * i);
+      });
+    if (a.out[2]) {
+      t.one([&] { remove_gravity(m, w, a.real[3], w.c); });  // (w.c is free after RNEA)
+      t.each(m.nb, [&](long i) { store(w.c[i], a.out[2] + 6 * i); });
+    }
+    return true;
+  }
+};
+
+// M⁻¹: minv_team (minv.hpp); extra: its flag
+template <> struct TeamOp<ops::Minv> {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    int* ok = reinterpret_cast<int*>(t.extra);
+    minv_team(t, m, w, a.in[0], a.choice[1] != 0, a.out[0], ok);
+    return *ok;
+  }
+};
+
+// FD through M⁻¹, qdd = M⁻¹ (u - c): the bias c by RNEA on one thread, in a linear workspace of its own
+// (in extra), beside minv_team on the first warp; then each row of the product. The same values as
+// forward_dynamics (minv.hpp). extra: RNEA's workspace, u - c (nv), the flag
+template <> struct TeamOp<ops::ForwardDynamics> {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(nv) + 16;
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    const int nv = m.nv;
+    Workspace<T> wr = carve_workspace<T>(t.extra, m.nb, nv, kLinearWorkspace);
+    T* r = reinterpret_cast<T*>(t.extra + workspace_bytes<T>(m.nb, nv, kLinearWorkspace));
+    int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, nv) - 16);
+    const T* Mi = w.dense;
+    t.beside([&](const auto& sub) { minv_team(sub, m, w, a.in[0], true, w.dense, ok); },
+             [&] {
+               rnea(m, wr, a.in[0], a.in[1], static_cast<const T*>(nullptr), a.in[3], a.real[4], r);
+               for (int k = 0; k < nv; ++k) r[k] = a.in[2][k] - r[k];
+             });
+    if (!*ok) return false;
+    t.each(nv, [&](long row) {
+      T acc = T(0);
+      for (int c = 0; c < nv; ++c) acc += Mi[row * nv + c] * r[c];
+      a.out[0][row] = acc;
+    });
+    return true;
+  }
 };
 
 // ∂ID/∂q and ∂ID/∂qd: rnea_derivatives_team (rnea_derivatives.hpp)

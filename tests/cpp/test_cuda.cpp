@@ -195,12 +195,12 @@ TEST(Cuda, TeamKernelsEqualCpu) {
     SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
     rbd::Handle serial(m);
     const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
-    for (const char* name : {"inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient",
-                             "integrator_f_ext_gradient"}) {
+    for (const char* name : {"inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
+                             "forward_dynamics_gradient", "integrator_gradient", "integrator_f_ext_gradient"}) {
       SCOPED_TRACE(name);
       const int id = ops::find_op(name);
       const ops::OpSpec& op = *ops::op_table()[id].spec;
-      const bool step = std::string(op.family) == "integrators";
+      const bool step = std::string(op.family) == "integrators", minv = std::string(name) == "minv";
       // auto: the team on a small batch (at most 8 per SM, 32 for a step: 32 or 128 samples on the
       // interpret device's 4 SMs), or when nv >= 16; a mimic model keeps the sample kernel whatever is
       // asked
@@ -219,17 +219,19 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
       p64->cuda()->set_kernel("auto");
       Inputs in = make_inputs(m, op, 5, 11, true);
-      // ∇ID: every output, dtau alone, the halves alone; ∇FD: every output, the two matrices alone; the
-      // steps: every output, the last alone; each step with every scheme (the 6 integrator types) and
-      // convention (0: Pinocchio's, 1: MuJoCo's)
+      // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the halves alone; ∇FD: every output,
+      // the two matrices alone; the steps: every output, the last alone; M⁻¹ dense and upper; each step
+      // with every scheme (the 6 integrator types) and convention (0: Pinocchio's, 1: MuJoCo's)
       const std::vector<unsigned> masks =
-          step ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
+          op.n_out == 1 ? std::vector<unsigned>{1u}
+          : step        ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
           : op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110} : std::vector<unsigned>{0b1111, 0b0011};
-      for (int variant = 0; variant < (step ? 12 : 1); ++variant)
+      for (int variant = 0; variant < (step ? 12 : minv ? 2 : 1); ++variant)
       for (unsigned mask : masks) {
         SCOPED_TRACE(mask);
         SCOPED_TRACE(variant);
         if (step) in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
+        if (minv) in.call.choice[1] = 1 - variant;  // output_dense: True, then False
         // MuJoCo's convention: the team asked for, which runs the step on one of its threads
         const char* kernel = step && variant >= 6 ? "team" : "auto";
         p64->cuda()->set_kernel(kernel), p32->cuda()->set_kernel(kernel);
@@ -250,9 +252,9 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       if (on_device()) continue;
       // a device array's bad value: the team's check names it, as the host's does
       Inputs bad = in;
-      bad.arrays[1][3 * m.nv] = NAN;
+      bad.arrays[minv ? 0 : 1][3 * (minv ? m.nq : m.nv)] = NAN;  // (M⁻¹ takes q alone)
       const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
-      EXPECT_NE(msg.find("qd[3]"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(minv ? "q[3]" : "qd[3]"), std::string::npos) << msg;
     }
   }
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);

@@ -133,30 +133,46 @@ def test_errors_name_the_samples(interpret):
             h.crba(StandIn(bad))
 
 
-@pytest.mark.skipif(ON_DEVICE, reason="NumPy stand-ins are device arrays in interpret mode only")
 def test_device_arrays_are_checked(interpret):
+    # a device array of another dtype, a mix of host and device arrays, a wrong shape, a strided array:
+    # each named. In interpret mode on NumPy stand-ins; on a GPU on PyTorch tensors, which the binding
+    # reads through their own attributes (not their __cuda_array_interface__), with the same errors,
+    # and a tensor that requires grad refused by name
     h = rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda")
     q = np.zeros((3, 7))
-    with pytest.raises(TypeError, match="float64"):
-        h.crba(StandIn(q.astype(np.float32)))
-    with pytest.raises(TypeError, match="host arrays or device arrays, not both"):
-        h.inverse_dynamics(StandIn(q), q, q)
-    with pytest.raises(ValueError, match="expected shape"):
-        h.crba(StandIn(np.zeros((3, 6))))
-    with pytest.raises(ValueError, match="C-contiguous"):
+    if ON_DEVICE:
+        torch = pytest.importorskip("torch")
+        if not torch.cuda.is_available():
+            pytest.skip("on the device, this test passes PyTorch's CUDA tensors")
+        wrap, strided = (lambda a: torch.from_numpy(a).cuda()), torch.zeros((7, 3), dtype=torch.float64).cuda().t()
+    else:
         class Strided(StandIn):
             @property
             def __cuda_array_interface__(self):
                 d = StandIn.__cuda_array_interface__.fget(self)
                 d["strides"] = (8, 24)
                 return d
-        h.crba(Strided(q))
+        wrap, strided = StandIn, Strided(q)
+    with pytest.raises(TypeError, match="q: expected a device array of dtype float64.*got typestr '<f4'"):
+        h.crba(wrap(q.astype(np.float32)))
+    with pytest.raises(TypeError, match="qd: expected a device array like q .*host arrays or device arrays, not both"):
+        h.inverse_dynamics(wrap(q), q, q)
+    with pytest.raises(ValueError, match=r"q: expected shape \(7,\) or \(B, 7\).*got shape \(3, 6\)"):
+        h.crba(wrap(np.zeros((3, 6))))
+    with pytest.raises(ValueError, match="q: expected a C-contiguous device array"):
+        h.crba(strided)
+    M = h.crba(wrap(q))
+    np.testing.assert_allclose(M.cpu().numpy() if ON_DEVICE else M.a, rbdkit.Handle(h.model).crba(q), rtol=1e-12,
+                               atol=1e-12)
+    if ON_DEVICE:
+        with pytest.raises(TypeError, match="q: a tensor that requires grad.*detach"):
+            h.crba(wrap(q).requires_grad_())
 
 
 @pytest.mark.parametrize("robot", ["iiwa", "hyq_floating"])
 def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
-    # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ∇ID, ∇FD, the steps'
-    # gradients) or the sample-per-thread ones; each equals the CPU handle. A bad value is named
+    # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ID, M⁻¹, FD, ∇ID, ∇FD,
+    # the steps' gradients) or the sample-per-thread ones; each equals the CPU handle. A bad value is named
     name, _, floating = robot.partition("_")
     m = rbdkit.robots.load(name, floating_base=bool(floating))
     cpu = rbdkit.Handle(m)
@@ -164,7 +180,10 @@ def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
     for kernel in ("team", "sample", "auto"):
         monkeypatch.setenv("RBDKIT_CUDA_KERNEL", kernel)
         h = rbdkit.Handle(m, backend="cuda")
-        for got, ref in ((h.forward_dynamics_gradient(q, qd, tau), cpu.forward_dynamics_gradient(q, qd, tau)),
+        for got, ref in (((h.minv(q), h.minv(q, output_dense=False), h.forward_dynamics(q, qd, tau)),
+                          (cpu.minv(q), cpu.minv(q, output_dense=False), cpu.forward_dynamics(q, qd, tau))),
+                         (h.inverse_dynamics(q, qd, tau), cpu.inverse_dynamics(q, qd, tau)),
+                         (h.forward_dynamics_gradient(q, qd, tau), cpu.forward_dynamics_gradient(q, qd, tau)),
                          (h.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"),
                           cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"))):
             for g, r in zip(got, ref):

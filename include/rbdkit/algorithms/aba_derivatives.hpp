@@ -71,8 +71,9 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 }
 
 // aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
-// for a model without mimic joints: ABA for qdd beside M⁻¹, each on one thread and its own workspace
-// (ABA's, linear, in `extra`); the derivative passes on M⁻¹'s placements (rnea_derivatives_team); then
+// for a model without mimic joints: ABA for qdd on one thread, in its own workspace (ABA's, linear, in
+// `extra`), beside M⁻¹ on part of the team (minv_team); the derivative passes on M⁻¹'s placements
+// (rnea_derivatives_team); then
 // every entry of the two products
 // -M⁻¹ ∂ID. The same results as aba_derivatives (each entry's sums in the same order), M⁻¹ left in
 // w.dense as there. extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
@@ -90,7 +91,8 @@ RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace
   if (!qdd) qdd = dv + n2;
   int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
   const S* Minv = w.dense;
-  t.two([&] { ok[0] = aba(m, wa, q, qd, tau, fext, gravity, qdd); }, [&] { ok[1] = minv(m, w, q, true, w.dense); });
+  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok + 1); },
+           [&] { ok[0] = aba(m, wa, q, qd, tau, fext, gravity, qdd); });
   if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
   rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
   t.each(2 * n2, [&](long k) {

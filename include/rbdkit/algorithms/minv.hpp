@@ -129,6 +129,102 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
   }
 }
 
+// column c of M⁻¹ (its upper part and its joint blocks), after the articulated inertias (w.U, w.Dinv,
+// w.S_world, w.X_world): minv_backward_pass's column work for c (the bodies whose subtree holds c,
+// children first) then minv_forward_pass's (the bodies with v_idx <= c, parents first). Column c
+// reads and writes only column c of Minv, F and P, so columns may run side by side (minv_team).
+// Rows past the joint blocks are left zero. The same values as the two passes
+template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S>& w, int c, S* Minv) {
+  const int nv = m.nv;
+  for (int r = 0; r < nv; ++r) Minv[r * nv + c] = S(0);
+  Force<S> fc = Force<S>::zero();  // F's column c
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const BodyDesc<S>& b = m.body[i];
+    const int vi = b.v_idx, ni = b.nv;
+    if (c < vi || c >= vi + b.nv_subtree) continue;
+    const Force<S>* U = w.U + 6 * i;
+    const Motion<S>* Sw = w.S_world + 6 * i;
+    const S* Dinv = w.Dinv + 36 * i;
+    if (c < vi + ni) {  // own block: D⁻¹
+      for (int k = 0; k < ni; ++k) Minv[(vi + k) * nv + c] = Dinv[k * ni + c - vi];
+    } else if (ni == 1) {  // a descendant's column: -D⁻¹ Sᵀ F
+      Minv[vi * nv + c] = -Dinv[0] * dot(Sw[0], fc);
+    } else {
+      S sf[6];
+      joint_project_in(b, w.X_world[i], Sw, fc, sf);
+      if (ni == 6) neg_dinv_times<6>(Dinv, sf, Minv + vi * nv + c, nv);
+      else neg_dinv_times(ni, Dinv, sf, Minv + vi * nv + c, nv);
+    }
+    if (b.parent < 0) continue;
+    for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
+  }
+  for (int i = 0; i < m.nb; ++i) {  // Minv_i· -= D⁻¹ Uᵀ P_λ, P_i = P_λ + S Minv_i·
+    const BodyDesc<S>& b = m.body[i];
+    const int vi = b.v_idx, ni = b.nv;
+    if (vi > c) continue;
+    const Force<S>* U = w.U + 6 * i;
+    const Motion<S>* Sw = w.S_world + 6 * i;
+    const S* Dinv = w.Dinv + 36 * i;
+    S* P = w.P + 6 * nv * i + 6 * c;
+    const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent + 6 * c : nullptr;
+    if (ni == 1 && Pp) {
+      Motion<S> pc = load_motion(Pp);
+      S& x = Minv[vi * nv + c];
+      x -= Dinv[0] * dot(pc, U[0]);
+      pc += x * Sw[0];
+      store(pc, P);
+      continue;
+    }
+    Motion<S> pc = Motion<S>::zero();
+    if (Pp) {
+      pc = load_motion(Pp);
+      S up[6];
+      for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
+      for (int k = 0; k < ni; ++k) {
+        S acc = S(0);
+        for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
+        Minv[(vi + k) * nv + c] -= acc;
+      }
+    }
+    for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
+    store(pc, P);
+  }
+}
+
+// minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
+// body inertias side by side (world_placements_team), the articulated inertias U, D⁻¹ (the only chain:
+// IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every column side by side (minv_column),
+// then the lower triangle (mirrored when dense, else zero). The same values as minv. ok: where the
+// team writes whether every D was positive definite (read it after the team's next barrier). An
+// InlineTeam runs minv
+template <typename S, typename Team>
+RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv,
+                      int* ok) {
+  if constexpr (!Team::cooperative) {
+    *ok = minv(m, w, q, dense, Minv);
+  } else {
+    const int nv = m.nv;
+    world_placements_team(t, m, w, q, true, [&](int i) {
+      w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
+      w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
+    });
+    t.one([&] {
+      *ok = 1;
+      for (int i = m.nb - 1; i >= 0; --i) {
+        const BodyDesc<S>& b = m.body[i];
+        Force<S>* U = w.U + 6 * i;
+        S* Dinv = w.Dinv + 36 * i;
+        if (!joint_inertia(b.nv, w.S_world + 6 * i, w.IA[i], U, Dinv)) *ok = 0;
+        else if (b.parent >= 0) add_articulated_residual(b.nv, w.IA[i], U, Dinv, w.IA[b.parent]);
+      }
+    });
+    t.each(nv, [&](long c) { minv_column(m, w, static_cast<int>(c), Minv); });
+    t.each2(nv, nv, [&](long r, long c) {
+      if (r > c) Minv[r * nv + c] = dense ? Minv[c * nv + r] : S(0);
+    });
+  }
+}
+
 // M⁻¹(q), nv x nv row-major. dense: mirror the upper triangle into the lower;
 // otherwise the strict lower triangle is zero. false if M is not PD.
 template <typename S> RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv) {

@@ -7,9 +7,35 @@
 // -9.81); it enters as a fictitious base acceleration a_0 = -g.
 #pragma once
 
+#include "rbdkit/model/team.hpp"
 #include "rbdkit/model/workspace.hpp"
 
 namespace rbd {
+
+// body i's velocity and acceleration, v_i = X⁻¹ v_λ + S qd, a_i = X⁻¹ a_λ + S qdd + v_i × S qd (a_0 = -g),
+// from w.X_parent of i and its parent's.  writes w.v, w.a of body i
+template <typename S>
+RBD_HD void rnea_body_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S* qd, const S* qdd, S gravity) {
+  const BodyDesc<S>& b = m.body[i];
+  const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
+  Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
+  if (b.parent >= 0) {
+    vp = w.v[b.parent];
+    ap = w.a[b.parent];
+  } else {
+    ap.lin.z = -gravity;
+  }
+  w.v[i] = w.X_parent[i].act_inv(vp) + vJ;
+  w.a[i] = w.X_parent[i].act_inv(ap) + cross(w.v[i], vJ);
+  if (qdd) w.a[i] += joint_motion(b, qdd + b.v_idx);
+}
+
+// body i's net force f_i = I a_i + v_i ×* I v_i - f_ext.  writes w.f of body i
+template <typename S> RBD_HD void rnea_body_force(const ModelView<S>& m, Workspace<S>& w, int i, const S* fext) {
+  const BodyDesc<S>& b = m.body[i];
+  w.f[i] = b.I * w.a[i] + cross(w.v[i], b.I * w.v[i]);
+  if (fext) w.f[i] -= load_force(fext + 6 * i);
+}
 
 // forward pass: body transforms, velocities, accelerations, net body forces
 //   q (nq), qd (nv), qdd (nv or null: zero), fext (nb x 6 body frame or null)
@@ -18,23 +44,9 @@ template <typename S>
 RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                               const S* qdd, const S* fext, S gravity) {
   for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    // kinematics: X_λi, v_i = X⁻¹ v_λ + S qd, a_i = X⁻¹ a_λ + S qdd + v_i × S qd
-    w.X_parent[i] = body_transform(b, q);
-    const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
-    Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
-    if (b.parent >= 0) {
-      vp = w.v[b.parent];
-      ap = w.a[b.parent];
-    } else {
-      ap.lin.z = -gravity;
-    }
-    w.v[i] = w.X_parent[i].act_inv(vp) + vJ;
-    w.a[i] = w.X_parent[i].act_inv(ap) + cross(w.v[i], vJ);
-    if (qdd) w.a[i] += joint_motion(b, qdd + b.v_idx);
-    // net force: f_i = I a_i + v_i ×* I v_i - f_ext
-    w.f[i] = b.I * w.a[i] + cross(w.v[i], b.I * w.v[i]);
-    if (fext) w.f[i] -= load_force(fext + 6 * i);
+    w.X_parent[i] = body_transform(m.body[i], q);
+    rnea_body_motion(m, w, i, qd, qdd, gravity);
+    rnea_body_force(m, w, i, fext);
   }
 }
 
@@ -56,6 +68,24 @@ RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd
                  const S* fext, S gravity, S* tau) {
   rnea_forward_pass(m, w, q, qd, qdd, fext, gravity);
   rnea_backward_pass(m, w, tau);
+}
+
+// rnea on a team of threads (model/team.hpp): the joint transforms side by side, the velocity and
+// acceleration chain on one thread, the net forces side by side, the backward pass on one thread. The
+// same values as rnea. An InlineTeam runs rnea
+template <typename S, typename Team>
+RBD_HD void rnea_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
+                      const S* fext, S gravity, S* tau) {
+  if constexpr (!Team::cooperative) {
+    rnea(m, w, q, qd, qdd, fext, gravity, tau);
+  } else {
+    t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
+    t.one([&] {
+      for (int i = 0; i < m.nb; ++i) rnea_body_motion(m, w, i, qd, qdd, gravity);
+    });
+    t.each(m.nb, [&](long i) { rnea_body_force(m, w, static_cast<int>(i), fext); });
+    t.one([&] { rnea_backward_pass(m, w, tau); });
+  }
 }
 
 // body accelerations without the fictitious gravity term (writes a_out, nb)

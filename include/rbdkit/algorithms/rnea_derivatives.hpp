@@ -24,6 +24,17 @@
 
 namespace rbd {
 
+// body i's momentum, net force and inertia variation in the world frame, from its world inertia
+// w.Ic, velocity and acceleration.  writes w.h, w.f, w.B of body i
+template <typename S>
+RBD_HD void rnea_derivatives_body_terms(const ModelView<S>&, Workspace<S>& w, int i, const S* fext) {
+  const Inertia<S>& oI = w.Ic[i];
+  w.h[i] = oI * w.v[i];
+  w.f[i] = oI * w.a[i] + cross(w.v[i], w.h[i]);
+  if (fext) w.f[i] -= w.X_world[i].act(load_force(fext + 6 * i));
+  w.B[i] = inertia_variation(oI, w.v[i]);
+}
+
 // forward pass: world placements, subspace columns, velocities, accelerations,
 // column sensitivities, and per-body inertia, momentum, force and B.
 //   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null); placed:
@@ -35,18 +46,47 @@ template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                           const S* qdd, const S* fext, S gravity, bool placed = false) {
   for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
     // placement, world-frame subspace, velocity, acceleration, column sensitivities
     if (!placed) world_placement(m, w, q, i);
     world_motion(m, w, i, qd, qdd, gravity, true, true);
-    // body inertia, momentum and net force in the world frame
-    if (!placed) w.Ic[i] = transform_inertia(w.X_world[i], b.I);
-    const Inertia<S>& oI = w.Ic[i];
-    w.h[i] = oI * w.v[i];
-    w.f[i] = oI * w.a[i] + cross(w.v[i], w.h[i]);
-    if (fext) w.f[i] -= w.X_world[i].act(load_force(fext + 6 * i));
-    w.B[i] = inertia_variation(oI, w.v[i]);
+    if (!placed) w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
+    rnea_derivatives_body_terms(m, w, i, fext);
   }
+}
+
+// rnea_derivatives_forward_pass on a team (model/team.hpp): the placements (world_placements_team,
+// unless placed) and each joint's own motion side by side, the velocity and acceleration chain on one
+// thread (a few additions and a cross product per body), then each body's sensitivities and inertia
+// terms side by side. The same values, each in the same order
+template <typename S, typename Team>
+RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
+                                          const S* qd, const S* qdd, const S* fext, S gravity, bool placed) {
+  // vJ = s qd and aJ = s qdd, parked in w.v and w.a until the chain adds the parent's motion
+  auto own_motion = [&](int i) { world_joint_motion(m, w, i, qd, qdd, true, w.v[i], w.a[i]); };
+  if (placed) {
+    t.each(m.nb, [&](long i) { own_motion(static_cast<int>(i)); });
+  } else {
+    world_placements_team(t, m, w, q, true, [&](int i) {
+      w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
+      own_motion(i);
+    });
+  }
+  t.one([&] {  // v_i = v_λ + vJ, a_i = a_λ + aJ + v_i × vJ, parents first
+    for (int i = 0; i < m.nb; ++i) {
+      Motion<S> vp, ap;
+      parent_motion(m, w, i, gravity, true, vp, ap);
+      const Motion<S> vJ = w.v[i];
+      w.v[i] = vp + vJ;
+      w.a[i] = ap + w.a[i] + cross(w.v[i], vJ);
+    }
+  });
+  t.each(m.nb, [&](long i_) {
+    const int i = static_cast<int>(i_);
+    Motion<S> vp, ap;
+    parent_motion(m, w, i, gravity, true, vp, ap);
+    motion_sensitivities(m, w, i, vp, ap);
+    rnea_derivatives_body_terms(m, w, i, fext);
+  });
 }
 
 // subtree composites: w.Ic, w.h, w.f and w.B of each body become its subtree's
@@ -138,17 +178,30 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
 }
 
 // rnea_derivatives on a team of threads (model/team.hpp; the GPU's team kernels), for a model without
-// mimic joints: the forward pass and the composites on one thread, then each body's entries side by
-// side (bodies own disjoint entries there). The same results; tau is not computed
+// mimic joints: the forward pass split (rnea_derivatives_forward_team), the four composite sums side by
+// side, then each body's entries side by side (bodies own disjoint entries there). The same results; tau is
+// not computed. An InlineTeam runs the serial passes
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                   const S* qdd, const S* fext, S gravity, S* dtau_dq, S* dtau_dqd,
                                   bool placed = false) {
   t.each(static_cast<long>(m.nv) * m.nv, [&](long k) { dtau_dq[k] = S(0), dtau_dqd[k] = S(0); });
-  t.one([&] {
+  if constexpr (!Team::cooperative) {
     rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed);
     rnea_derivatives_composites(m, w);
-  });
+  } else {
+    rnea_derivatives_forward_team(t, m, w, q, qd, qdd, fext, gravity, placed);
+    t.each(4, [&](long part) {  // the composites, each of the four sums on its own thread
+      for (int i = m.nb - 1; i >= 0; --i) {
+        const int p = m.body[i].parent;
+        if (p < 0) continue;
+        if (part == 0) w.Ic[p] += w.Ic[i];
+        else if (part == 1) w.h[p] += w.h[i];
+        else if (part == 2) w.f[p] += w.f[i];
+        else w.B[p] += w.B[i];
+      }
+    });
+  }
   t.each(m.nb, [&](long i) {
     rnea_derivatives_body(m, w, static_cast<int>(i), dtau_dq, dtau_dqd, static_cast<S*>(nullptr));
   });
