@@ -14,17 +14,18 @@ and scratch) forced into global memory and into the block's shared memory
 batch runs in at most three waves there; docs/cuda.md).
 
 With --kernels: two more resident columns, the operations that have a team
-kernel (∇ID, ∇FD, the step gradient: a block of threads per sample) forced
-to the sample-per-thread kernel and to the team kernel (RBDKIT_CUDA_KERNEL;
-the default, "auto", picks by B per SM and by nv; docs/cuda.md, "Team
-kernels"); "-" for the others.
+kernel (ID, M⁻¹, FD, ∇ID, ∇FD, the step gradient: a block of threads per
+sample) forced to the sample-per-thread kernel and to the team kernel
+(RBDKIT_CUDA_KERNEL; the default, "auto", picks by B per SM and by nv;
+docs/cuda.md, "Team kernels"); "-" for the others.
 
 With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
 N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:
 rk4 step gradients, state, input and end-effector costs), on the GPU
 (resident) against the CPU engine (issue 17, point 3).
 
-    python3 bench/gpu.py [--quick] [--work-memory] [--kernels] [--ilqr] [--out table.md]
+    python3 bench/gpu.py [--quick] [--robots R,..] [--ops OP,..] [--batches B,..] [--work-memory]
+                         [--kernels] [--ilqr] [--out table.md]
 
 In interpret mode (RBDKIT_CUDA_INTERPRET=1, no GPU) the same runs, slowly:
 a smoke test of the script, not a measurement.
@@ -47,7 +48,8 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 # the operations with a team kernel (src/cuda/team_kernels.cuh; --kernels)
-TEAM_OPS = ("inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient")
+TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
+            "integrator_gradient")
 
 
 def device_module(choice="any"):
@@ -163,6 +165,7 @@ def main():
     ap.add_argument("--max-gb", type=float, default=4.0,
                     help="skip a B whose inputs and outputs take more than this (GB): the Euler step Hessian "
                          "of floating Atlas is 6.7 MB per knot point")
+    ap.add_argument("--batches", help="comma-separated batch sizes, e.g. 1,256,4096 (default: 1 to 16384)")
     ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
     ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
@@ -183,6 +186,13 @@ def main():
             ap.error(f"--robots: unknown {', '.join(unknown)}; expected some of {', '.join(known)}")
         robots = [known[n] for n in a.robots.split(",")]
     batches = (1, 256, 4096) if a.quick else BATCHES
+    if a.batches:
+        try:
+            batches = tuple(int(b) for b in a.batches.split(","))
+        except ValueError:
+            ap.error(f"--batches: expected comma-separated positive integers, got {a.batches!r}")
+        if any(b <= 0 for b in batches):
+            ap.error(f"--batches: expected positive batch sizes, got {a.batches!r}")
     ops = OPS
     if a.ops:
         known_ops = {o[1] for o in OPS}

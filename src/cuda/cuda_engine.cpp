@@ -93,23 +93,27 @@ struct CudaEngine::Impl {
   std::unique_ptr<cuda::Device> dev;
   void* own_stream = nullptr;
   void* stream = nullptr;
-  Buffer bodies, work, status, io, flag;
+  Buffer bodies, work, status, io;
   unsigned long max_work_bytes = kMaxWorkBytes;
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
   std::string kernel = "auto";  // set_kernel
   std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample, 0: none
   std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
+  std::vector<int> team_wide_nv;           // per operation: TeamOp<Op>::wide_nv
   cuda::DeviceLimits limits{};
   std::mutex call;
   std::vector<int> status_host;
-  int* failed_host = nullptr;  // pinned: the flag samples set when they fail (DeviceCall::failed)
+  // the flag samples set when they fail (DeviceCall::failed): pinned host memory that the kernels write
+  // directly (failed_device, its device address), read after the synchronisation with no copy
+  int* failed_host = nullptr;
+  int* failed_device = nullptr;
   int call_id = 0;
 
   Impl(const Model& m, const std::string& d, bool interp) : model(m), dtype(d), interpret(interp) {
     if (d != "float64" && d != "float32")
       throw std::invalid_argument("dtype: expected 'float64' or 'float32', got '" + d + "'");
     dev = interp ? cuda::make_interpret_device() : cuda::make_cuda_device();
-    for (Buffer* b : {&bodies, &work, &status, &io, &flag}) b->dev = dev.get();
+    for (Buffer* b : {&bodies, &work, &status, &io}) b->dev = dev.get();
     own_stream = dev->create_stream();
     stream = own_stream;
     limits = dev->limits();
@@ -118,11 +122,16 @@ struct CudaEngine::Impl {
       if (const char* k = std::getenv("RBDKIT_CUDA_KERNEL"); k && *k) kernel = checked_kernel(k, "RBDKIT_CUDA_KERNEL");
       team_extra.assign(ops::op_table().size(), 0);
       team_per_sm.assign(ops::op_table().size(), 0);
+      team_wide_nv.assign(ops::op_table().size(), 0);
       if (d == "float64")
-        cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data());
-      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data());
+        cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
+                                  team_wide_nv.data());
+      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
+                                    team_wide_nv.data());
       failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
-      // the model's bodies in the engine's scalar, uploaded once; the failure flag, cleared once
+      *failed_host = 0;
+      failed_device = static_cast<int*>(dev->device_address(failed_host));
+      // the model's bodies in the engine's scalar, uploaded once
       if (d == "float64") upload_bodies(model.bodies_as<double>());
       else upload_bodies(model.bodies_as<float>());
     } catch (...) {
@@ -140,9 +149,6 @@ struct CudaEngine::Impl {
     const size_t n = sizeof(BodyDesc<T>) * b.size();
     bodies.reserve(n);
     if (n) dev->to_device(bodies.p, b.data(), n, stream);
-    *failed_host = 0;
-    flag.reserve(sizeof(int));
-    dev->to_device(flag.p, failed_host, sizeof(int), stream);
     dev->synchronize(stream);
   }
 
@@ -153,16 +159,18 @@ struct CudaEngine::Impl {
                                                       const std::vector<long>& samples);
   // the team kernel (team_kernels.cuh) where the op has one, on a model without mimic joints: asked
   // for, or (auto) while the batch is small for the GPU (at most the op's per_sm samples per SM: a
-  // sample per thread leaves the GPU idle), or where nv³ products dominate one thread's chain
-  // (nv >= 16). On an H200 (docs/gpu.md, 2026-11-27) the team was faster on iiwa up to 8 samples
-  // per SM for ∇ID and ∇FD and up to 32 for the rk4 step's gradient, slower past them, and faster on
-  // floating Atlas at every B. A step in MuJoCo's convention has no team form (its team runs it on
-  // one thread): auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
+  // sample per thread leaves the GPU idle), or where one thread's chain is too long for any B (the
+  // op's wide_nv: nv >= 16, except ID's O(nb)). On an H200 (docs/gpu.md, 2026-11-27) the team was
+  // faster on iiwa up to 8 samples per SM for ID, M⁻¹, FD, ∇ID and ∇FD and up to 32 for the rk4
+  // step's gradient, level or slower past them, and faster on floating Atlas at every B but ID's
+  // from B = 4096. A step in MuJoCo's convention has no team form (its team runs it on one thread):
+  // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
   bool uses_team(int op, long B, int convention) const {
     if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
     if (kernel == "team") return true;
     if (convention != kPinocchioConvention) return false;
-    return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) || model.nv >= 16;
+    return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
+           (team_wide_nv[op] > 0 && model.nv >= team_wide_nv[op]);
   }
   // the call's output convention (Pinocchio's for an operation without one)
   static int call_convention(const ops::OpSpec& op, const ops::OpCall& c) {
@@ -274,7 +282,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   status.reserve(sizeof(int) * B);
   dc.work = dc.work_shared ? nullptr : static_cast<unsigned char*>(work.p);
   int* status_d = static_cast<int*>(status.p);
-  dc.failed = static_cast<int*>(flag.p);
+  dc.failed = failed_device;
   dc.call_id = call_id = call_id == 0x7fffffff ? 1 : call_id + 1;  // (never 0, the flag's first value)
   for (long s0 = 0; s0 < B; s0 += chunk) {
     cuda::DeviceCall<T> part = dc;
@@ -287,8 +295,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     dev->launch(op_id, part, part.B == B ? whole : shape_of(part.B, cuda::kWorkGlobal),
                 stream);  // (a chunk: global memory, as the whole call)
   }
-  // the flag (one int, to pinned memory), the outputs of host arrays; the statuses only when the flag says
-  dev->to_host(failed_host, dc.failed, sizeof(int), stream);
+  // the outputs of host arrays; the statuses only when the flag (written in place) says
   for (int o = 0; o < op.n_out; ++o)
     if (c.out[o] && !device_arrays) dev->to_host(c.out[o], dc.out[o], sizeof(T) * out_values[o] * B, stream);
   dev->synchronize(stream);
@@ -437,7 +444,7 @@ std::string CudaEngine::kernel_for(int op, long B, int convention) const {
   return impl_->uses_team(op, B, convention) ? "team" : "sample";
 }
 unsigned long CudaEngine::device_bytes() const {
-  return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes + impl_->flag.bytes;
+  return impl_->bodies.bytes + impl_->work.bytes + impl_->status.bytes + impl_->io.bytes;
 }
 
 void CudaEngine::copy_to_host(void* dst, const void* src, size_t bytes) {

@@ -48,10 +48,16 @@ struct CudaDevice : Device {
   void release(void* p) override { cudaFree(p); }
   void* alloc_host(size_t bytes) override {
     void* p = nullptr;
-    check(cudaMallocHost(&p, bytes ? bytes : 1), ("cudaMallocHost of " + std::to_string(bytes) + " bytes").c_str());
+    check(cudaHostAlloc(&p, bytes ? bytes : 1, cudaHostAllocMapped),
+          ("cudaHostAlloc of " + std::to_string(bytes) + " bytes").c_str());
     return p;
   }
   void release_host(void* p) override { cudaFreeHost(p); }
+  void* device_address(void* host) override {
+    void* d = nullptr;
+    check(cudaHostGetDevicePointer(&d, host, 0), "cudaHostGetDevicePointer");
+    return d;
+  }
   void to_device(void* dst, const void* src, size_t bytes, void* s) override {
     check(cudaMemcpyAsync(dst, src, bytes, cudaMemcpyHostToDevice, static_cast<cudaStream_t>(s)), "copy to device");
   }

@@ -22,9 +22,11 @@ struct Device {
   virtual DeviceLimits limits() const = 0;
   virtual void* alloc(size_t bytes) = 0;  // throws std::runtime_error when out of memory
   virtual void release(void* p) = 0;
-  // page-locked host memory (copies to it are asynchronous DMA), freed by release_host
+  // page-locked host memory (copies to it are asynchronous DMA), freed by release_host; mapped into the
+  // device's address space: kernels write it directly at device_address(p)
   virtual void* alloc_host(size_t bytes) = 0;
   virtual void release_host(void* p) = 0;
+  virtual void* device_address(void* host) = 0;
   virtual void to_device(void* dst, const void* src, size_t bytes, void* stream) = 0;
   virtual void to_host(void* dst, const void* src, size_t bytes, void* stream) = 0;
   virtual void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* stream) = 0;

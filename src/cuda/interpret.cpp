@@ -24,6 +24,7 @@ struct InterpretDevice : Device {
   void release(void* p) override { std::free(p); }
   void* alloc_host(size_t bytes) override { return alloc(bytes); }
   void release_host(void* p) override { std::free(p); }
+  void* device_address(void* host) override { return host; }
   void to_device(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
   void to_host(void* dst, const void* src, size_t bytes, void*) override { std::memcpy(dst, src, bytes); }
   void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* stream) override {

@@ -152,7 +152,9 @@ struct SerialTeam {
 // ---- the team operations: TeamOp<Op>::run(team, m, w, a) computes Op::run's outputs, with
 // team.extra: extra_bytes(nb, nv) bytes (a multiple of 16) after the workspace and the op's scratch.
 // per_sm: up to how many samples per SM the engine's auto choice takes the team kernel on a small
-// model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team)
+// model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team); wide_nv: from
+// this nv on, auto takes the team at every B (0: never), where one thread's chain is too long for a
+// sample per thread to catch up at any B
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
 };
@@ -162,6 +164,7 @@ template <typename Op> struct TeamOp {
 template <> struct TeamOp<ops::InverseDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 0;  // (O(nb) work: floating Atlas's sample kernel led from B = 4096)
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }  // (unused)
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -183,6 +186,7 @@ template <> struct TeamOp<ops::InverseDynamics> {
 template <> struct TeamOp<ops::Minv> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -198,6 +202,7 @@ template <> struct TeamOp<ops::Minv> {
 template <> struct TeamOp<ops::ForwardDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(nv) + 16;
   }
@@ -227,6 +232,7 @@ template <> struct TeamOp<ops::ForwardDynamics> {
 template <> struct TeamOp<ops::InverseDynamicsGradient> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int nv) {
     return workspace_array_bytes<T>(2ul * nv * nv);
   }
@@ -249,6 +255,7 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
 template <> struct TeamOp<ops::ForwardDynamicsGradient> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv);
   }
@@ -269,6 +276,7 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
 template <typename Op> struct TeamStep {
   static constexpr bool available = true;
   static constexpr int per_sm = 32;  // (four ∇FD and their products per sample: more work to split)
+  static constexpr int wide_nv = 16;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + 16;
   }
@@ -362,12 +370,18 @@ template <typename Op> constexpr int team_per_sm() {
   if constexpr (TeamOp<Op>::available) return TeamOp<Op>::per_sm;
   else return 0;
 }
+template <typename Op> constexpr int team_wide_nv() {
+  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::wide_nv;
+  else return 0;
+}
 
-// per registered operation (ops::AllOps' order): its team's extra bytes (0: no team kernel) and per_sm
+// per registered operation (ops::AllOps' order): its team's extra bytes (0: no team kernel), per_sm
+// and wide_nv
 template <typename T, typename... Op>
-void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm) {
+void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm, int* wide_nv) {
   int k = 0;
-  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), ++k), ...);
+  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), wide_nv[k] = team_wide_nv<Op>(), ++k),
+   ...);
 }
 
 }  // namespace cuda

@@ -249,3 +249,14 @@ def test_bench_gpu_script(tmp_path):
     # the Euler step Hessian of iiwa is 14 x 21 x 21 values (49 kB) a sample: skipped at every B
     hess = [r for r in rows if r[2].strip() == "euler ∇²step"]
     assert len(hess) == 14 and all("over --max-gb" in r[7] for r in hess)
+    # --ops and --batches narrow the table; a bad batch size is named
+    script = [sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
+              "--budget", "0.001", "--ops", "minv", "--out", str(out)]
+    env = dict(os.environ, RBDKIT_CUDA_INTERPRET="1")
+    r = subprocess.run(script + ["--batches", "1,16"], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in out.read_text().splitlines() if line.startswith("| iiwa |")]
+    assert [(r[1].strip(), r[2].strip(), r[3].strip()) for r in rows] == [
+        (dt, "M⁻¹", b) for dt in ("float32", "float64") for b in ("1", "16")]
+    r = subprocess.run(script + ["--batches", "1,0"], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2 and "--batches: expected positive batch sizes, got '1,0'" in r.stderr

@@ -83,13 +83,13 @@ class CudaEngine {
   // The environment variable RBDKIT_CUDA_WORK sets it when an engine is made
   void set_work_memory(const std::string& where);
   std::string work_memory() const;
-  // which kernel computes an operation that has a team kernel (∇ID, ∇FD, the
-  // step's gradient: a block of threads per sample; docs/cuda.md, "Team
-  // kernels"): "team", "sample" (one thread per sample, as every other
-  // operation), or "auto" (the default: the team kernel on a model without
-  // mimic joints, for a batch of at most 8 samples per SM (32 for a step), or
-  // at any B when nv >= 16; a step in MuJoCo's convention keeps the sample
-  // kernel unless the team is asked for).
+  // which kernel computes an operation that has a team kernel (ID, M⁻¹, FD,
+  // ∇ID, ∇FD, the step's gradient: a block of threads per sample;
+  // docs/cuda.md, "Team kernels"): "team", "sample" (one thread per sample,
+  // as every other operation), or "auto" (the default: the team kernel on a
+  // model without mimic joints, for a batch of at most 8 samples per SM (32
+  // for a step), or at any B when nv >= 16 except for ID; a step in MuJoCo's
+  // convention keeps the sample kernel unless the team is asked for).
   // The environment variable RBDKIT_CUDA_KERNEL sets it when an engine is made
   void set_kernel(const std::string& which);
   std::string kernel() const;
