@@ -29,6 +29,7 @@ step() {  # step <name> <command...>: runs it, records pass/fail
 }
 
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader || true
+rm -f build/gpu/stage_latency.md build/gpu/call_cost.md build/gpu/gpu_bench.md  # (no table of an earlier run)
 gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
 
 # ---- build: the library with the real kernels, the C++ tests

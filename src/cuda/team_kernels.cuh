@@ -41,18 +41,26 @@ namespace cuda {
 constexpr int kTeam = 64;  // threads per sample: two warps (Team::two runs one serial pass on each)
 
 // ---- the teams
+// The first N threads of a block as a team: N = kTeam, the whole block (BlockTeam, __syncthreads()
+// between phases), or 32, its first warp (WarpTeam, __syncwarp(): the team of BlockTeam::beside).
 // extra: the team's own memory in the sample's work slice (TeamOp<Op>::extra_bytes, at its end)
-struct BlockTeam {
+template <int N> struct GpuTeam {
   static constexpr bool cooperative = true;
   unsigned char* extra = nullptr;
-  // every index below n: thread t takes t, t + kTeam, ...
+  RBD_HD static void barrier() {
+#if defined(__CUDA_ARCH__)
+    if constexpr (N == 32) __syncwarp();
+    else __syncthreads();
+#endif
+  }
+  // every index below n: thread t takes t, t + N, ...
   template <typename F> RBD_HD void each(long n, F&& f) const {
 #if defined(__CUDA_ARCH__)
-    for (long k = threadIdx.x; k < n; k += kTeam) f(k);
-    __syncthreads();
+    for (long k = threadIdx.x; k < n; k += N) f(k);
 #else
     (void)n, (void)f;
 #endif
+    barrier();
   }
   template <typename F> RBD_HD void each2(long rows, long cols, F&& f) const {
     each(rows * cols, [&](long k) { f(k / cols, k % cols); });
@@ -60,28 +68,39 @@ struct BlockTeam {
   template <typename F> RBD_HD void one(F&& f) const {
 #if defined(__CUDA_ARCH__)
     if (threadIdx.x == 0) f();
-    __syncthreads();
 #else
     (void)f;
 #endif
+    barrier();
   }
-  // f0 on the first warp's first thread, f1 on the second warp's: two chains side by side
+  // f0 on the first thread, f1 on thread N/2: two chains side by side on a block (the second warp's
+  // first thread); on a warp the two take turns
   template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const {
 #if defined(__CUDA_ARCH__)
     if (threadIdx.x == 0) f0();
-    else if (threadIdx.x == 32) f1();
-    __syncthreads();
+    else if (threadIdx.x == N / 2) f1();
 #else
     (void)f0, (void)f1;
 #endif
+    barrier();
   }
-  // f(sub) on the first warp, a team of its own (WarpTeam), beside g() on the second warp's first thread
-  template <typename F, typename G> RBD_HD void beside(F&& f, G&& g) const;
-  // whether x[0..n) are all finite, on every thread (a vote, and a barrier)
+  // the block: f(sub) on the first warp, a team of its own, beside g() on the second warp's first thread
+  template <typename F, typename G> RBD_HD void beside(F&& f, G&& g) const {
+    static_assert(N == kTeam, "beside: a block's team splits into its first warp and a thread");
+#if defined(__CUDA_ARCH__)
+    if (threadIdx.x < 32) f(GpuTeam<32>{extra});
+    else if (threadIdx.x == 32) g();
+#else
+    (void)f, (void)g;
+#endif
+    barrier();
+  }
+  // the block: whether x[0..n) are all finite, on every thread (a vote, and a barrier)
   template <typename T> RBD_HD bool all_finite(const T* x, long n) const {
+    static_assert(N == kTeam, "all_finite: the block's vote");
 #if defined(__CUDA_ARCH__)
     T acc = T(0);
-    for (long k = threadIdx.x; k < n; k += kTeam) acc += x[k] - x[k];
+    for (long k = threadIdx.x; k < n; k += N) acc += x[k] - x[k];
     return __syncthreads_and(acc == acc) != 0;
 #else
     (void)x, (void)n;
@@ -89,50 +108,8 @@ struct BlockTeam {
 #endif
   }
 };
-
-// the first warp of a BlockTeam as a team (BlockTeam::beside): its lanes, __syncwarp() between phases
-struct WarpTeam {
-  static constexpr bool cooperative = true;
-  unsigned char* extra = nullptr;
-  template <typename F> RBD_HD void each(long n, F&& f) const {
-#if defined(__CUDA_ARCH__)
-    for (long k = threadIdx.x % 32; k < n; k += 32) f(k);
-    __syncwarp();
-#else
-    (void)n, (void)f;
-#endif
-  }
-  template <typename F> RBD_HD void each2(long rows, long cols, F&& f) const {
-    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
-  }
-  template <typename F> RBD_HD void one(F&& f) const {
-#if defined(__CUDA_ARCH__)
-    if (threadIdx.x % 32 == 0) f();
-    __syncwarp();
-#else
-    (void)f;
-#endif
-  }
-  template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const {
-#if defined(__CUDA_ARCH__)
-    if (threadIdx.x % 32 == 0) f0();
-    else if (threadIdx.x % 32 == 16) f1();
-    __syncwarp();
-#else
-    (void)f0, (void)f1;
-#endif
-  }
-};
-
-template <typename F, typename G> RBD_HD void BlockTeam::beside(F&& f, G&& g) const {
-#if defined(__CUDA_ARCH__)
-  if (threadIdx.x < 32) f(WarpTeam{extra});
-  else if (threadIdx.x == 32) g();
-  __syncthreads();
-#else
-  (void)f, (void)g;
-#endif
-}
+using BlockTeam = GpuTeam<kTeam>;
+using WarpTeam = GpuTeam<32>;
 
 struct SerialTeam {
   static constexpr bool cooperative = true;
@@ -145,6 +122,8 @@ struct SerialTeam {
   }
   template <typename F> void one(F&& f) const { f(); }
   template <typename F0, typename F1> void two(F0&& f0, F1&& f1) const { f1(), f0(); }
+  // (g first: g reading the team's results fails here, as it would race on a GPU; the team reading
+  // g's would pass, which is why g writes only memory of its own)
   template <typename F, typename G> void beside(F&& f, G&& g) const { g(), f(*this); }
   template <typename T> bool all_finite(const T* x, long n) const { return cuda::all_finite(x, n); }
 };

@@ -183,11 +183,11 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
-// the team kernels (src/cuda/team_kernels.cuh: ∇ID, ∇FD, the integrator step's gradient with and
-// without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as the sample-per-thread
-// kernels are: every test model, both dtypes, the work in shared and in global memory, every output or
-// some, f_ext, every integrator scheme in both conventions (MuJoCo's, asked for, on one thread of the
-// team);
+// the team kernels (src/cuda/team_kernels.cuh: ID, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
+// step's gradient with and without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as
+// the sample-per-thread kernels are: every test model, both dtypes, the work in shared and in global
+// memory, every output or some, f_ext, every integrator scheme in both conventions (MuJoCo's, asked
+// for, on one thread of the team);
 // mimic models keep the sample kernel; device arrays' values checked by the team
 TEST(Cuda, TeamKernelsEqualCpu) {
   for (const ModelCase& mc : rbd_test::all_cases()) {

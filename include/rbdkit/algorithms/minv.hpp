@@ -89,51 +89,53 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
   return true;
 }
 
-// forward pass over columns ≥ v_idx: Minv_i· -= D⁻¹ Uᵀ P_λ, P_i = P_λ + S Minv_i·
-// reads w.U, w.Sw (world frame), w.Dinv; writes w.P (nb x nv x 6), Minv (upper part)
-template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
+// body i's forward step in column c >= v_idx: Minv_i,c -= D⁻¹ Uᵀ P_λ,c, P_i,c = P_λ,c + S Minv_i,c (the
+// root has no P_λ).  reads w.U, w.S_world (world frame), w.Dinv, the parent's w.P; writes body i's
+// column c of w.P (nb x nv x 6) and of Minv
+template <typename S> RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int c, S* Minv) {
   const int nv = m.nv;
-  for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    const int vi = b.v_idx, ni = b.nv;
-    const Force<S>* U = w.U + 6 * i;
-    const Motion<S>* Sw = w.S_world + 6 * i;
-    const S* Dinv = w.Dinv + 36 * i;
-    S* P = w.P + 6 * nv * i;
-    const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
-    if (ni == 1 && Pp) {  // one DoF: a scalar D⁻¹, one U and one S
-      for (int c = vi; c < nv; ++c) {
-        Motion<S> pc = load_motion(Pp + 6 * c);
-        S& x = Minv[vi * nv + c];
-        x -= Dinv[0] * dot(pc, U[0]);
-        pc += x * Sw[0];
-        store(pc, P + 6 * c);
-      }
-      continue;
-    }
-    for (int c = vi; c < nv; ++c) {
-      Motion<S> pc = Motion<S>::zero();
-      if (Pp) {
-        pc = load_motion(Pp + 6 * c);
-        S up[6];
-        for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
-        for (int k = 0; k < ni; ++k) {
-          S acc = S(0);
-          for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
-          Minv[(vi + k) * nv + c] -= acc;
-        }
-      }
-      for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
-      store(pc, P + 6 * c);
+  const BodyDesc<S>& b = m.body[i];
+  const int vi = b.v_idx, ni = b.nv;
+  const Force<S>* U = w.U + 6 * i;
+  const Motion<S>* Sw = w.S_world + 6 * i;
+  const S* Dinv = w.Dinv + 36 * i;
+  S* P = w.P + 6 * nv * i + 6 * c;
+  const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent + 6 * c : nullptr;
+  if (ni == 1 && Pp) {  // one DoF: a scalar D⁻¹, one U and one S
+    Motion<S> pc = load_motion(Pp);
+    S& x = Minv[vi * nv + c];
+    x -= Dinv[0] * dot(pc, U[0]);
+    pc += x * Sw[0];
+    store(pc, P);
+    return;
+  }
+  Motion<S> pc = Motion<S>::zero();
+  if (Pp) {
+    pc = load_motion(Pp);
+    S up[6];
+    for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
+    for (int k = 0; k < ni; ++k) {
+      S acc = S(0);
+      for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
+      Minv[(vi + k) * nv + c] -= acc;
     }
   }
+  for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
+  store(pc, P);
+}
+
+// forward pass over columns ≥ v_idx (minv_forward_step), parents first
+template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
+  for (int i = 0; i < m.nb; ++i)
+    for (int c = m.body[i].v_idx; c < m.nv; ++c) minv_forward_step(m, w, i, c, Minv);
 }
 
 // column c of M⁻¹ (its upper part and its joint blocks), after the articulated inertias (w.U, w.Dinv,
 // w.S_world, w.X_world): minv_backward_pass's column work for c (the bodies whose subtree holds c,
-// children first) then minv_forward_pass's (the bodies with v_idx <= c, parents first). Column c
-// reads and writes only column c of Minv, F and P, so columns may run side by side (minv_team).
-// Rows past the joint blocks are left zero. The same values as the two passes
+// children first; F's column c in a local, w.F untouched) then minv_forward_pass's (the bodies with
+// v_idx <= c, parents first). Column c reads and writes only column c of Minv and of w.P, so columns
+// may run side by side (minv_team). Below the diagonal, only c's own joint block is written (the
+// rest is zero until the mirror). The same values as the two passes
 template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S>& w, int c, S* Minv) {
   const int nv = m.nv;
   for (int r = 0; r < nv; ++r) Minv[r * nv + c] = S(0);
@@ -158,37 +160,8 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
     if (b.parent < 0) continue;
     for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
   }
-  for (int i = 0; i < m.nb; ++i) {  // Minv_i· -= D⁻¹ Uᵀ P_λ, P_i = P_λ + S Minv_i·
-    const BodyDesc<S>& b = m.body[i];
-    const int vi = b.v_idx, ni = b.nv;
-    if (vi > c) continue;
-    const Force<S>* U = w.U + 6 * i;
-    const Motion<S>* Sw = w.S_world + 6 * i;
-    const S* Dinv = w.Dinv + 36 * i;
-    S* P = w.P + 6 * nv * i + 6 * c;
-    const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent + 6 * c : nullptr;
-    if (ni == 1 && Pp) {
-      Motion<S> pc = load_motion(Pp);
-      S& x = Minv[vi * nv + c];
-      x -= Dinv[0] * dot(pc, U[0]);
-      pc += x * Sw[0];
-      store(pc, P);
-      continue;
-    }
-    Motion<S> pc = Motion<S>::zero();
-    if (Pp) {
-      pc = load_motion(Pp);
-      S up[6];
-      for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
-      for (int k = 0; k < ni; ++k) {
-        S acc = S(0);
-        for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
-        Minv[(vi + k) * nv + c] -= acc;
-      }
-    }
-    for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
-    store(pc, P);
-  }
+  for (int i = 0; i < m.nb; ++i)  // parents first
+    if (m.body[i].v_idx <= c) minv_forward_step(m, w, i, c, Minv);
 }
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
