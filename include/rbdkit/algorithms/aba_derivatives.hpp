@@ -72,11 +72,10 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 
 // aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
 // for a model without mimic joints: ABA for qdd on one thread, in its own workspace (ABA's, linear, in
-// `extra`), beside M⁻¹ on part of the team (minv_team); the derivative passes on M⁻¹'s placements
-// (rnea_derivatives_team); then
-// every entry of the two products
-// -M⁻¹ ∂ID. The same results as aba_derivatives (each entry's sums in the same order), M⁻¹ left in
-// w.dense as there. extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
+// `extra`), beside M⁻¹ on the first warp (minv_team); the derivative passes on M⁻¹'s placements
+// (rnea_derivatives_team); then every entry of the two products -M⁻¹ ∂ID. The same results as
+// aba_derivatives (each entry's sums in the same order), M⁻¹ left in w.dense as there.
+// extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
 template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {
   return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(2ul * nv * nv + nv) + 16;
 }

@@ -178,9 +178,9 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
 }
 
 // rnea_derivatives on a team of threads (model/team.hpp; the GPU's team kernels), for a model without
-// mimic joints: the forward pass split (rnea_derivatives_forward_team), the four composite sums side by
-// side, then each body's entries side by side (bodies own disjoint entries there). The same results; tau is
-// not computed. An InlineTeam runs the serial passes
+// mimic joints: the forward pass split (rnea_derivatives_forward_team), the four composite sums side
+// by side, then each body's entries side by side (bodies own disjoint entries there). The same
+// results; tau is not computed. An InlineTeam runs the serial passes
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                   const S* qdd, const S* fext, S gravity, S* dtau_dq, S* dtau_dqd,

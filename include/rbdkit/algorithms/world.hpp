@@ -20,7 +20,8 @@ RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, 
     for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
 }
 
-// the parent's world-frame velocity and acceleration (the root's: 0 and -g; with_acc false: 0)
+// the parent's world-frame velocity and acceleration (the root's: 0 and -g; with_acc false: a
+// parent's acceleration is not read, 0)
 template <typename S>
 RBD_HD void parent_motion(const ModelView<S>& m, const Workspace<S>& w, int i, S gravity, bool with_acc,
                           Motion<S>& vp, Motion<S>& ap) {
