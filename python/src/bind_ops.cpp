@@ -349,11 +349,12 @@ struct DeviceArray {
 
 // PyTorch's tensors, read directly: a tensor's __cuda_array_interface__ is a Python property that
 // builds a dict (2 µs on the H200 machine's host, 4 on a 2 GHz core), and a call read it twice per
-// array, most of a B = 1 call's time outside its kernel (docs/gpu.md, third session). A torch.Tensor (the class itself, not a subclass) on a GPU is read
-// through its own attributes (is_cuda, requires_grad, dtype, shape, is_contiguous(), data_ptr()),
-// and its outputs made by torch.empty; one of another dtype or rank, or a strided one, goes through
-// the interface, whose checks name the failure; one that requires grad is refused by name. torch is
-// never imported here: only a process that imported it can pass its tensors.
+// array, most of a B = 1 call's time outside its kernel (docs/gpu.md, third session). A torch.Tensor
+// (the class itself, not a subclass) on a GPU is read through its own attributes (is_cuda,
+// requires_grad, dtype, shape, is_contiguous(), data_ptr()), and its outputs made by torch.empty; one
+// of another dtype or rank, or a strided one, goes through the interface, whose checks name the
+// failure; one that requires grad is refused by name. torch is never imported here: only a process
+// that imported it can pass its tensors.
 struct TorchApi {
   PyObject* tensor = nullptr;  // the type torch.Tensor
   PyObject *f32 = nullptr, *f64 = nullptr, *empty = nullptr;

@@ -220,9 +220,10 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
       p64->cuda()->set_kernel("auto");
       Inputs in = make_inputs(m, op, 5, 11, true);
-      // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the halves alone; ∇FD: every output,
-      // the two matrices alone; the steps: every output, the last alone; M⁻¹ dense and upper; each step
-      // with every scheme (the 6 integrator types) and convention (0: Pinocchio's, 1: MuJoCo's)
+      // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the
+      // halves alone; ∇FD: every output, the two matrices alone; the steps: every output, the last alone;
+      // M⁻¹ dense and upper; each step with every scheme (the 6 integrator types) and convention (0:
+      // Pinocchio's, 1: MuJoCo's)
       const std::vector<unsigned> masks =
           op.n_out == 1 ? std::vector<unsigned>{1u}
           : step        ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
