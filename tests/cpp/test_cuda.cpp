@@ -38,11 +38,11 @@ std::unique_ptr<rbd::Handle> interpret_handle(const Model& m, const std::string&
   return h;
 }
 
-// the message of the std::invalid_argument that f() throws ("" when it throws none)
+// the message of the exception that f() throws ("" when it throws none)
 template <typename F> std::string error_of(F&& f) {
   try {
     f();
-  } catch (const std::invalid_argument& e) {
+  } catch (const std::exception& e) {  // (invalid_argument for values, runtime_error for a failed sample)
     return e.what();
   }
   return "";
@@ -134,6 +134,37 @@ TEST(Cuda, FailedSamplesAreNamed) {
   const std::string msg = error_of([&] { run<double>(h, id, in); });
   EXPECT_EQ(msg.rfind("osc_inertia: J M⁻¹ Jᵀ of an end effector is singular at sample 3", 0), 0u) << msg;
   EXPECT_NE(msg.find("[backend='cuda': 2 of 6 samples, samples 3, 5]"), std::string::npos) << msg;
+}
+
+// a team kernel's failure (a joint that moves no mass: D = 0 in M⁻¹'s articulated inertias, read by M⁻¹,
+// FD, ∇FD and the step's gradient) names the joint and the samples as the CPU does, and as the sample
+// kernel does
+TEST(Cuda, TeamFailuresAreNamed) {
+  const Model m = Model::from_urdf_string(R"(<robot name="r"><link name="base"/>
+    <link name="a"><inertial><mass value="1"/><origin xyz="0 0 0.1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    <link name="b"/>
+    <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+    <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.2"/><axis xyz="1 0 0"/>
+      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>)");
+  rbd::Handle serial(m);
+  const auto hp = interpret_handle(m, "float64");
+  for (const char* name : {"minv", "forward_dynamics", "forward_dynamics_gradient", "integrator_gradient"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    const Inputs in = make_inputs(m, *ops::op_table()[id].spec, 3, 4, false);
+    const std::string cpu = error_of([&] { run<double>(serial, id, in); });
+    EXPECT_NE(cpu.find("joint 'j2' moves no mass at sample 0"), std::string::npos) << cpu;
+    for (const char* kernel : {"team", "sample"}) {
+      hp->cuda()->set_kernel(kernel);
+      ASSERT_EQ(hp->cuda()->kernel_for(id, 3), kernel);
+      const std::string msg = error_of([&] { run<double>(*hp, id, in); });
+      EXPECT_EQ(msg.rfind(cpu, 0), 0u) << kernel << ": " << msg;  // the CPU's message, then the samples
+      EXPECT_NE(msg.find("[backend='cuda': 3 of 3 samples"), std::string::npos) << kernel << ": " << msg;
+    }
+    hp->cuda()->set_kernel("auto");
+  }
 }
 
 // values are checked as on the CPU (one pass, the argument and the sample named)
