@@ -97,7 +97,7 @@ struct CudaEngine::Impl {
   unsigned long max_work_bytes = kMaxWorkBytes;
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
   std::string kernel = "auto";  // set_kernel
-  std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample, 0: none
+  std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample
   std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
   std::vector<int> team_wide_nv;           // per operation: TeamOp<Op>::wide_nv
   cuda::DeviceLimits limits{};
@@ -166,7 +166,7 @@ struct CudaEngine::Impl {
   // from B = 4096. A step in MuJoCo's convention has no team form (its team runs it on one thread):
   // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
   bool uses_team(int op, long B, int convention) const {
-    if (!team_extra[op] || model.has_mimic() || kernel == "sample") return false;
+    if (!team_per_sm[op] || model.has_mimic() || kernel == "sample") return false;  // (0: no team kernel)
     if (kernel == "team") return true;
     if (convention != kPinocchioConvention) return false;
     return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||

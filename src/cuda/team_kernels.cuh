@@ -7,8 +7,8 @@
 //
 // A team kernel is written as phases (model/team.hpp): "for each index this
 // thread owns", ended by a barrier (Team::each), or one thread's serial pass
-// (Team::one), or two serial passes side by side on two warps (Team::two), or
-// a phased pass on the first warp beside a serial one (Team::beside).
+// (Team::one), or a phased pass on the first warp beside a serial one on the
+// second (Team::beside).
 // What a phase hands to the next goes through memory (the sample's work slice
 // or its outputs); a local variable outside a phase must be the same on every
 // thread (sizes, pointers, a flag read back after a barrier). The same source
@@ -38,7 +38,7 @@
 namespace rbd {
 namespace cuda {
 
-constexpr int kTeam = 64;  // threads per sample: two warps (Team::two runs one serial pass on each)
+constexpr int kTeam = 64;  // threads per sample: two warps (Team::beside splits them)
 
 // ---- the teams
 // The first N threads of a block as a team: N = kTeam, the whole block (BlockTeam, __syncthreads()
@@ -70,17 +70,6 @@ template <int N> struct GpuTeam {
     if (threadIdx.x == 0) f();
 #else
     (void)f;
-#endif
-    barrier();
-  }
-  // f0 on the first thread, f1 on thread N/2: two chains side by side on a block (the second warp's
-  // first thread); on a warp the two take turns
-  template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const {
-#if defined(__CUDA_ARCH__)
-    if (threadIdx.x == 0) f0();
-    else if (threadIdx.x == N / 2) f1();
-#else
-    (void)f0, (void)f1;
 #endif
     barrier();
   }
@@ -121,7 +110,6 @@ struct SerialTeam {
     each(rows * cols, [&](long k) { f(k / cols, k % cols); });
   }
   template <typename F> void one(F&& f) const { f(); }
-  template <typename F0, typename F1> void two(F0&& f0, F1&& f1) const { f1(), f0(); }
   // (g first: g reading the team's results fails here, as it would race on a GPU; the team reading
   // g's would pass, which is why g writes only memory of its own)
   template <typename F, typename G> void beside(F&& f, G&& g) const { g(), f(*this); }
@@ -144,7 +132,7 @@ template <> struct TeamOp<ops::InverseDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 0;  // (O(nb) work: floating Atlas's sample kernel led from B = 4096)
-  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }  // (unused)
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 0; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
     rnea_team(t, m, w, a.in[0], a.in[1], a.in[2], a.in[4], a.real[3], a.out[0]);
@@ -279,7 +267,7 @@ template <typename Op> struct TeamStep {
 template <> struct TeamOp<ops::IntegratorGradient> : TeamStep<ops::IntegratorGradient> {};
 template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::IntegratorFExtGradient> {};
 
-// the team's extra bytes of Op (0: Op has no team kernel)
+// the team's extra bytes of Op (0 too where Op has no team kernel)
 template <typename Op, typename T> RBD_HD unsigned long team_extra_bytes(int nb, int nv) {
   if constexpr (TeamOp<Op>::available) return TeamOp<Op>::template extra_bytes<T>(nb, nv);
   else return 0;
@@ -354,7 +342,7 @@ template <typename Op> constexpr int team_wide_nv() {
   else return 0;
 }
 
-// per registered operation (ops::AllOps' order): its team's extra bytes (0: no team kernel), per_sm
+// per registered operation (ops::AllOps' order): its team's extra bytes, per_sm (0: no team kernel)
 // and wide_nv
 template <typename T, typename... Op>
 void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm, int* wide_nv) {

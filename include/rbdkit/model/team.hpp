@@ -5,7 +5,6 @@
 //   t.each(n, f)     f(k) for every index k below n, spread over the team
 //   t.each2(r, c, f) f(i, j) for every i below r and j below c (a matrix's entries)
 //   t.one(f)         f() on one thread (a serial pass)
-//   t.two(f0, f1)    two serial passes side by side, on two threads
 //   t.beside(f, g)   f(sub) on part of the team, a team of its own whose
 //                    phases end at that part's barrier, beside the serial
 //                    pass g() on one other thread
@@ -33,7 +32,6 @@ struct InlineTeam {
       for (long j = 0; j < cols; ++j) f(i, j);
   }
   template <typename F> RBD_HD void one(F&& f) const { f(); }
-  template <typename F0, typename F1> RBD_HD void two(F0&& f0, F1&& f1) const { f0(), f1(); }
   template <typename F, typename G> RBD_HD void beside(F&& f, G&& g) const { f(*this), g(); }
 };
 
