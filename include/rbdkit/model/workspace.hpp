@@ -39,7 +39,7 @@ template <typename S> struct Workspace {
   Force<S>* f;           // (nb)        rnea: joint force (subtree), aba: bias force pA
   Motion<S>* c;          // (nb)        aba: velocity-product acceleration v × vJ
   Mat6<S>* IA;           // (nb)        aba, minv: articulated inertia
-  Inertia<S>* Ic;        // (nb)        crba: composite rigid-body inertia (world frame)
+  Inertia<S>* Ic;        // (nb)        crba: composite rigid-body inertia (body frame; world frame with mimics)
   Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
   Motion<S>* S_world;    // (nb x 6)    crba, minv, derivatives: motion subspace columns, world frame
   S* Dinv;               // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
@@ -49,7 +49,8 @@ template <typename S> struct Workspace {
   Force<S>* h;           // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (world)
   InertiaRate<S>* B;     // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
   S* u;                  // (nv)        aba: u = tau - Sᵀ·pA
-  S* F;                  // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau
+  S* F;                  // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau;
+                         //             crba: the columns Ic s riding up the tree
   S* P;                  // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame (full layout only)
   // ---- second order (algorithms/idsva_so.hpp, fdsva_so.hpp); nc = nv + nb bounds the joint DoFs
   // on one root path (a mimic body adds a DoF of its own there)

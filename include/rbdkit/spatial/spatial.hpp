@@ -185,28 +185,43 @@ template <typename S> struct Inertia {
   RBD_HD Inertia& operator+=(const Inertia& o) { m += o.m; h += o.h; I = I + o.I; return *this; }
 };
 
-// inertia of frame b re-expressed in frame a (X = X_a_b):  X* I X^-1
-//   m' = m, h' = R h + m p,
-//   I' = R I Rᵀ - ([h][p] + [p][h] + m [p]²)        (h = R h_b, about the new origin)
-//      = R I Rᵀ - (p hᵀ + h pᵀ + m p pᵀ) + (2 h·p + m p·p) 1
-// only the 6 independent entries of the symmetric results are computed
+// inertia of frame b re-expressed in frame a (X = X_a_b):  X* I X⁻¹
+//   m' = m, h' = R h + m p (h_r = R h, the first moment turned), and about the new origin
+//   I' = R I Rᵀ - (p h_rᵀ + h_r pᵀ + m p pᵀ) + (2 h_r·p + m p·p) 1
+//      = R I Rᵀ - (p gᵀ + g pᵀ) + 2 (g·p) 1                     g = h_r + (m/2) p
+// and, with r_k the columns of R and I = [a b c; b d e; c e f] (Σ r_k r_kᵀ = 1),
+//   R I Rᵀ = f 1 + (r_0 uᵀ + u r_0ᵀ) + (r_1 wᵀ + w r_1ᵀ),
+//   u = (a - f)/2 r_0 + b r_1 + c r_2,   w = (d - f)/2 r_1 + e r_2,
+// so each of the 6 independent entries of I' is three symmetric pairs (6 products): about 60
+// multiplies in all, where R I Rᵀ as two 3×3 products and the shift take about 85
 template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
   const Mat3<S>& R = X.R;
-  const Vec3<S>& p = X.p;
-  const Vec3<S> h = R * Ib.h;
-  const Mat3<S> RI = R * Ib.I;
   const S m = Ib.m;
-  const S diag = S(2) * dot(h, p) + m * dot(p, p);
-  const S pa[3] = {p.x, p.y, p.z}, ha[3] = {h.x, h.y, h.z};  // indexed below (Vec3's [] is a select)
-  Mat3<S> I;
+  const Vec3<S> hr = R * Ib.h;
+  const Vec3<S> g = hr + (S(0.5) * m) * X.p;
+  const S f = Ib.I(2, 2);
+  const S a2 = S(0.5) * (Ib.I(0, 0) - f), d2 = S(0.5) * (Ib.I(1, 1) - f);
+  const S b = Ib.I(0, 1), c = Ib.I(0, 2), e = Ib.I(1, 2);
+  // indexed below (Vec3's [] is a select)
+  const S r0[3] = {R(0, 0), R(1, 0), R(2, 0)}, r1[3] = {R(0, 1), R(1, 1), R(2, 1)};
+  const S pa[3] = {X.p.x, X.p.y, X.p.z}, ga[3] = {g.x, g.y, g.z};
+  S u[3], w[3];
+  for (int k = 0; k < 3; ++k) {
+    u[k] = a2 * r0[k] + b * r1[k] + c * R(k, 2);
+    w[k] = d2 * r1[k] + e * R(k, 2);
+  }
+  const S diag = f + S(2) * (ga[0] * pa[0] + ga[1] * pa[1] + ga[2] * pa[2]);
+  Inertia<S> out;
+  out.m = m;
+  out.h = hr + m * X.p;
   for (int r = 0; r < 3; ++r)
-    for (int c = r; c < 3; ++c) {
-      const S rot = RI(r, 0) * R(c, 0) + RI(r, 1) * R(c, 1) + RI(r, 2) * R(c, 2);
-      const S v = rot - (pa[r] * ha[c] + ha[r] * pa[c] + m * pa[r] * pa[c]) + (r == c ? diag : S(0));
-      I(r, c) = v;
-      I(c, r) = v;
+    for (int k = r; k < 3; ++k) {
+      const S v = (r0[r] * u[k] + u[r] * r0[k]) + (r1[r] * w[k] + w[r] * r1[k]) - (pa[r] * ga[k] + ga[r] * pa[k]) +
+                  (r == k ? diag : S(0));
+      out.I(r, k) = v;
+      out.I(k, r) = v;
     }
-  return {m, h + m * p, I};
+  return out;
 }
 
 // ------------------------------------------------------------- InertiaRate
