@@ -203,7 +203,7 @@ template <typename T> struct Single {
   std::vector<T> q, qd, a, o1, o2, o3, scratch;
   Single(const Robot& r) : bodies(r.model.bodies_as<T>()), buf(new rbd::WorkspaceBufferT<T>(r.model)) {
     const int nq = r.model.nq, nv = r.model.nv;
-    mv = {r.model.nb(), nq, nv, r.model.has_mimic() ? 1 : 0, bodies.data()};
+    mv = {r.model.nb(), nq, nv, r.model.general_path() ? 1 : 0, bodies.data()};
     q.assign(r.q.begin(), r.q.begin() + nq), qd.assign(r.qd.begin(), r.qd.begin() + nv);
     a.assign(r.a.begin(), r.a.begin() + nv);
     o1.resize(6 * nv * nv + nq + nv), o2.resize(6 * nv * nv), o3.resize(nv);

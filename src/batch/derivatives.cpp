@@ -25,6 +25,10 @@ void require_no_mimic(const Model& m, const char* what) {
     throw std::invalid_argument(std::string(what) +
                                 ": the direct inverse's passes apply to models without mimic joints; "
                                 "this model has mimic joints (use minv)");
+  if (m.general_path())
+    throw std::invalid_argument(std::string(what) +
+                                ": the direct inverse's passes need each subtree's coordinates contiguous (bodies "
+                                "added depth-first); this model's are not (use minv)");
 }
 
 // per-body DoF columns <-> (nb x 6 x 6) arrays

@@ -231,7 +231,7 @@ void d2integrate(const Model& m, long B, const double* q, const double* v, int a
   const int nq = m.nq, nv = m.nv;
   // the model in dual numbers (constants: zero derivative parts)
   const std::vector<BodyDesc<D>> bodies = m.bodies_as<D>();
-  const ModelView<D> mv = {m.nb(), nq, nv, m.has_mimic() ? 1 : 0, bodies.data()};
+  const ModelView<D> mv = {m.nb(), nq, nv, m.general_path() ? 1 : 0, bodies.data()};
   std::vector<D> qd(nq), vd(nv), delta(nv), qp(nq), J(nv * nv);
   for (long s = 0; s < B; ++s) {
     const double* qs = q + s * nq;

@@ -224,7 +224,7 @@ void end_effector_pose_hessian(const Model& m, long B, const double* q, const En
   const long n = ee.size();
   // the model and a workspace in dual numbers (constants: zero derivative parts)
   const std::vector<BodyDesc<D>> bodies = m.bodies_as<D>();
-  const ModelView<D> mv = {nb, nq, nv, m.has_mimic() ? 1 : 0, bodies.data()};
+  const ModelView<D> mv = {nb, nq, nv, m.general_path() ? 1 : 0, bodies.data()};
   WorkspaceBufferT<D> wbuf(m);
   Workspace<D>& w = wbuf.get();
   std::vector<D> qs(nq), delta(nv), qp(nq), G(6 * nv);

@@ -166,7 +166,7 @@ struct CudaEngine::Impl {
   // from B = 4096. A step in MuJoCo's convention has no team form (its team runs it on one thread):
   // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
   bool uses_team(int op, long B, int convention) const {
-    if (!team_per_sm[op] || model.has_mimic() || kernel == "sample") return false;  // (0: no team kernel)
+    if (!team_per_sm[op] || model.general_path() || kernel == "sample") return false;  // (0: no team kernel)
     if (kernel == "team") return true;
     if (convention != kPinocchioConvention) return false;
     return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
@@ -198,7 +198,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   const Model& m = model;
   const long B = c.B;
   cuda::DeviceCall<T> dc{};
-  dc.model = {m.nb(), m.nq, m.nv, m.has_mimic() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
+  dc.model = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
   dc.layout = ops::workspace_layout(op, m);
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
   const bool team = uses_team(op_id, B, call_convention(op, c));

@@ -198,6 +198,9 @@ template <typename T> void check_call(const Model& m, const OpSpec& op, const Op
   if (op.model == kNoMimic && m.has_mimic())
     throw std::invalid_argument(std::string(op.name) + ": this operation applies to models without mimic joints; "
                                 "this model has mimic joints");
+  if (op.model == kNoMimic && m.general_path())
+    throw std::invalid_argument(std::string(op.name) + ": this operation needs each subtree's coordinates "
+                                "contiguous (bodies added depth-first); this model's are not");
   // parameters first (cheap), then the arrays in argument order
   for (int k = 0; k < op.n_args; ++k) {
     const ArgSpec& a = op.args[k];

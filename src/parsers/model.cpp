@@ -19,6 +19,8 @@ bool Model::has_mimic() const {
   return false;
 }
 
+bool Model::general_path() const { return has_mimic() || !subtrees_contiguous(bodies.data(), nb()); }
+
 void Model::finalize() {
   // 1-DoF axes along a frame axis: the kinematics then turn two columns instead of multiplying 3x3s
   for (auto& b : bodies) {

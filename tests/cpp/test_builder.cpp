@@ -3,13 +3,17 @@
 // input is an std::invalid_argument that names it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <Eigen/Dense>
 
+#include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/batch/derivatives_api.hpp"
 #include "rbdkit/batch/dynamics.hpp"
 #include "rbdkit/parsers/builder.hpp"
 
@@ -296,4 +300,80 @@ TEST(Builder, LongMimicChainsResolveToTheirRoot) {
     ASSERT_EQ(m.joints[k].multiplier, k % 2 ? -1.0 : 1.0) << k;
     ASSERT_NEAR(m.joints[k].offset, k % 2 ? 0.001 : 0.0, 1e-15) << k;
   }
+}
+
+// a model whose bodies were not added depth-first (both hips, then both knees) takes the general
+// paths (world-frame CRBA, M⁻¹ through M's factor) and computes what the same robot added
+// depth-first does, coordinate by coordinate; the direct inverse's passes refuse it by name
+TEST(ModelBuilder, BodiesAddedBreadthFirstGiveTheSameDynamics) {
+  auto build = [](bool depth_first) {
+    ModelBuilder b;
+    JointSpec root;
+    root.name = "root";
+    root.type = "free";
+    const int base = b.add_body(-1, root, "base", rigid_inertia(4.0, {0.02, -0.01, 0.03}, Mat3<double>{{0.1, 0.01, 0, 0.01, 0.2, 0.02, 0, 0.02, 0.15}}));
+    auto leg = [&](const std::string& side, int parent, int level) {
+      JointSpec j;
+      j.name = side + (level == 0 ? "_hip" : "_knee");
+      j.type = "revolute";
+      j.axis = level == 0 ? Vec3<double>{1, 0, 0} : Vec3<double>{0, 0.6, 0.8};
+      j.X_parent_joint.p = {level == 0 ? 0.2 : 0.0, side == "l" ? 0.15 : -0.15, level == 0 ? 0.0 : -0.4};
+      return b.add_body(parent, j, side + std::to_string(level),
+                        rigid_inertia(1.0 + level, {0.01, 0.0, -0.2}, Mat3<double>{{0.02, 0, 0, 0, 0.02, 0, 0, 0, 0.004}}));
+    };
+    if (depth_first) {
+      leg("r", leg("r", base, 0), 1);
+      leg("l", leg("l", base, 0), 1);
+    } else {
+      const int r = leg("r", base, 0), l = leg("l", base, 0);
+      leg("r", r, 1);
+      leg("l", l, 1);
+    }
+    return b.build();
+  };
+  const Model df = build(true), bf = build(false);
+  EXPECT_FALSE(df.general_path());
+  EXPECT_TRUE(bf.general_path());
+  EXPECT_FALSE(bf.has_mimic());
+  ASSERT_EQ(df.nv, bf.nv);
+  // v index of each of df's coordinates in bf (by joint name)
+  std::vector<int> perm(df.nv), qperm(df.nq);
+  for (const JointInfo& j : df.joints) {
+    const JointInfo& k = bf.joints[bf.joint_index(j.name)];
+    const int nv = df.bodies[df.joint_index(j.name)].nv, nq = df.bodies[df.joint_index(j.name)].nq;
+    for (int a = 0; a < nv; ++a) perm[j.v_idx + a] = k.v_idx + a;
+    for (int a = 0; a < nq; ++a) qperm[j.q_idx + a] = k.q_idx + a;
+  }
+  Eigen::VectorXd q(df.nq), qb(df.nq), qd(df.nv), qdb(df.nv), tau(df.nv), taub(df.nv);
+  const std::vector<double> q0 = df.neutral();
+  for (int k = 0; k < df.nq; ++k) q[k] = q0[k] + 0.3 * std::sin(1.0 + k);
+  q.segment(3, 4).normalize();
+  for (int k = 0; k < df.nv; ++k) qd[k] = std::cos(2.0 + k), tau[k] = 3 * std::sin(0.5 * k);
+  for (int k = 0; k < df.nq; ++k) qb[qperm[k]] = q[k];
+  for (int k = 0; k < df.nv; ++k) qdb[perm[k]] = qd[k], taub[perm[k]] = tau[k];
+  Dynamics a(df), b(bf);
+  const Eigen::MatrixXd M = a.crba(q), Mb = b.crba(qb), Mi = a.minv(q), Mib = b.minv(qb);
+  const Eigen::VectorXd qdd = a.aba(q, qd, tau), qddb = b.aba(qb, qdb, taub);
+  for (int r = 0; r < df.nv; ++r) {
+    EXPECT_NEAR(qdd[r], qddb[perm[r]], 1e-13 * std::max(1.0, std::abs(qdd[r])));
+    for (int c = 0; c < df.nv; ++c) {
+      EXPECT_NEAR(M(r, c), Mb(perm[r], perm[c]), 1e-13) << r << ", " << c;
+      EXPECT_NEAR(Mi(r, c), Mib(perm[r], perm[c]), 1e-11) << r << ", " << c;
+    }
+  }
+  // ∇FD through the general path's Cholesky factor
+  WorkspaceBuffer wa(df), wb(bf);
+  std::vector<double> x(df.nv), xb(df.nv), A(df.nv * df.nv), B(A.size()), Ab(A.size()), Bb(A.size());
+  ASSERT_TRUE(aba_derivatives(df.view(), wa.get(), q.data(), qd.data(), tau.data(), static_cast<const double*>(nullptr),
+                              -9.81, x.data(), A.data(), B.data()));
+  ASSERT_TRUE(aba_derivatives(bf.view(), wb.get(), qb.data(), qdb.data(), taub.data(),
+                              static_cast<const double*>(nullptr), -9.81, xb.data(), Ab.data(), Bb.data()));
+  const int n = df.nv;
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      EXPECT_NEAR(A[r * n + c], Ab[perm[r] * n + perm[c]], 1e-10) << r << ", " << c;
+      EXPECT_NEAR(B[r * n + c], Bb[perm[r] * n + perm[c]], 1e-10) << r << ", " << c;
+    }
+  EXPECT_NE(error_of([&] { batch::minv_bpass(bf, 1, qb.data(), Ab.data()); }).find("bodies added depth-first"),
+            std::string::npos);
 }

@@ -48,7 +48,7 @@ void check_against_nested_duals(const Model& m, int conv) {
 
   // the model and a workspace in nested dual numbers
   const std::vector<BodyDesc<D2>> bodies = m.bodies_as<D2>();
-  const ModelView<D2> mdd = {m.nb(), nq, nv, m.has_mimic() ? 1 : 0, bodies.data()};
+  const ModelView<D2> mdd = {m.nb(), nq, nv, m.general_path() ? 1 : 0, bodies.data()};
   WorkspaceBufferT<D2> wdd(m);
   WorkspaceBuffer wd(m);
   std::vector<D2> qd(nq), vd(nv), ud(nv), dq(nv), qp(nq), xn(nq + nv), qn_ref(nq), psi(nv),

@@ -165,7 +165,8 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
   RBD_FUZZ_CHECK(finite_all(tau.data(), tau.size()));
   batch::crba(m, 1, q.data(), M.data(), &ws);
   RBD_FUZZ_CHECK(finite_all(M.data(), M.size()));
-  // rounding: CRBA works with world-frame inertias and subspace columns, so
+  // rounding: CRBA works with inertias and columns moved over the tree's lengths
+  // (world frame, or each body's frame along the chain), so
   // the tolerance scales with the largest of them, (|I| + 2|h| L + m L²) μ²,
   // L a bound on the distance of a body origin from the world origin (mimic
   // offsets displace bodies at the neutral configuration) and μ the largest

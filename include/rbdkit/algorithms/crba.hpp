@@ -8,6 +8,11 @@
 // This is the least work per body (no world placement, no world inertia) and
 // Pinocchio's layout: joint i's rows of M over its subtree's columns at once.
 //
+// The body-frame pass needs each subtree's coordinates contiguous (bodies in
+// depth-first order: subtrees_contiguous); a model on the general path
+// (ModelView::has_mimic: mimic joints, or a ModelBuilder's bodies added
+// otherwise) takes crba_world.
+//
 // Mimic joints (crba_world): a mimic body contributes mult·S to its target's
 // column, so M accumulates every body pair's term into the (shared) columns;
 // the result is Gᵀ M_full G for the reduced-coordinate map G. That pass works
@@ -20,12 +25,12 @@
 
 namespace rbd {
 
-// ---- body coordinates (models without mimic joints)
+// ---- body coordinates (models off the general path: no mimic joints, subtrees contiguous)
 
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
 // the columns F (nv x 6 row-major, each in body i's frame) and zeros over the columns after
-// its subtree (not its descendants'), each mirrored into the lower triangle. Every entry of
-// M is written exactly once over the pass (the columns before v_i: by i's ancestors' rows).
+// its subtree (not its descendants'), each mirrored into the lower triangle. Over the pass every
+// entry of M is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows)
 template <typename S> RBD_HD void crba_store_rows(const ModelView<S>& m, int i, const S* F, S* M) {
   const BodyDesc<S>& b = m.body[i];
   const int nv = m.nv, vi = b.v_idx, c_end = vi + b.nv_subtree;
@@ -71,7 +76,7 @@ template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m,
   }
 }
 
-// ---- world coordinates (mimic models; crba_forward_pass also serves centroidal.hpp)
+// ---- world coordinates (the general path; crba_forward_pass also serves centroidal.hpp)
 
 // forward pass: world placements, subspace columns, world body inertias
 //   writes w.X_parent, w.X_world, w.S_world, w.Ic
@@ -135,14 +140,14 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   }
 }
 
-// M in world coordinates (any model, mimic joints included)
+// M in world coordinates (any model: mimic joints, any body order)
 template <typename S> RBD_HD void crba_world(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
   crba_forward_pass(m, w, q);
   crba_backward_pass(m, w, M);
 }
 
-// M(q), nv x nv row-major, symmetric. Without mimic joints in body coordinates
-// (writes w.X_parent, w.Ic, w.F), with them in world coordinates (crba_world)
+// M(q), nv x nv row-major, symmetric. In body coordinates (writes w.X_parent,
+// w.Ic, w.F), on the general path in world coordinates (crba_world)
 template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
   if (m.has_mimic) return crba_world(m, w, q, M);
   for (int i = 0; i < m.nb; ++i) {

@@ -142,8 +142,8 @@ template <typename S> RBD_HD void neg_matmul(const S* RBD_RESTRICT A, const S* R
 }
 
 // out (n) = Σ_j a[rows[j]·lda] B[rows[j]·n + r] for r < n, over the `count` listed rows of B
-// (n x n, row-major) in the list's order: a column of A B when only the rows listed meet a nonzero
-// of A's column a (stride lda). Each entry is summed from 0 in that order, so with the zero terms
+// (n x n, row-major) in the list's order, i.e. (Bᵀ a)_r: a column of Bᵀ A (of B A for a symmetric
+// B, as M⁻¹) when only the rows listed meet a nonzero of A's column a (stride lda). Each entry is summed from 0 in that order, so with the zero terms
 // of a dense product left out it is that product's number. Host double and float: up to 8 vectors
 // of 16 bytes per register block (8, 4, 2, 1), as neg_matmul; elsewhere the plain loop.
 template <typename S>

@@ -16,8 +16,10 @@
 // shared 6 x nv array holds every F_i.
 //
 // Only the upper triangle (columns ≥ the row's joint) is computed; the lower
-// triangle is mirrored when a dense result is asked for. Mimic models take
-// the dense path (Cholesky inverse of M).
+// triangle is mirrored when a dense result is asked for. The passes need each
+// subtree's columns contiguous (subtrees_contiguous); models on the general path
+// (ModelView::has_mimic: mimic joints, or bodies not added depth-first) take the
+// dense path (Cholesky inverse of M).
 #pragma once
 
 #include "rbdkit/algorithms/aba.hpp"

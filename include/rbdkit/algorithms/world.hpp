@@ -1,7 +1,7 @@
 // rbdkit/algorithms/world.hpp — the world-coordinate kinematics that the
-// world-frame algorithms (CRBA, M⁻¹, derivatives, energy, regressors) share,
-// one body at a time so each algorithm adds its own per-body work in the
-// same sweep. Bodies in order (parents first).
+// world-frame algorithms (M⁻¹, derivatives, energy, regressors, centroidal,
+// CRBA on the general path) share, one body at a time so each algorithm adds
+// its own per-body work in the same sweep. Bodies in order (parents first).
 #pragma once
 
 #include "rbdkit/model/team.hpp"

@@ -55,8 +55,8 @@ template <typename S> class WorkspaceBufferT {
 };
 using WorkspaceBuffer = WorkspaceBufferT<double>;
 
-// the layout aba needs: linear, full for mimic models (their dense path)
-inline WorkspaceLayout aba_layout(const Model& m) { return m.has_mimic() ? kFullWorkspace : kLinearWorkspace; }
+// the layout aba needs: linear, full on the general path (Model::general_path: its dense path)
+inline WorkspaceLayout aba_layout(const Model& m) { return m.general_path() ? kFullWorkspace : kLinearWorkspace; }
 
 // the caller's workspace, or one of our own of the given layout for the
 // duration of a call (a caller's workspace must hold that layout)

@@ -53,9 +53,27 @@ template <typename T, typename S> RBD_HD void body_as(const BodyDesc<S>& b, Body
 // device-copyable view of a model: sizes and a pointer to nb bodies
 template <typename S> struct ModelView {
   int nb, nq, nv;
-  int has_mimic;            // 1 if any body is a mimic (forward dynamics then uses the dense path)
+  int has_mimic;            // 1 if any body is a mimic, or the bodies are not in depth-first order
+                            // (Model::general_path): the algorithms then take their general paths
+                            // (world-frame CRBA, M⁻¹ and forward dynamics through M's Cholesky factor)
   const BodyDesc<S>* body;  // (nb)
 };
+
+// whether each body's subtree owns the velocity coordinates [v_idx, v_idx + nv_subtree), one
+// contiguous range: bodies in depth-first order, as URDF and MJCF models are, and a ModelBuilder's
+// when its bodies were added so. The body-frame CRBA and the direct M⁻¹ rely on it. It holds when
+// each body's range lies in its parent's: a range then holds its subtree's coordinates, and as many.
+// Models without mimic joints (a mimic body owns no coordinate)
+template <typename S> RBD_HD bool subtrees_contiguous(const BodyDesc<S>* body, int nb) {
+  for (int i = 0; i < nb; ++i) {
+    const int p = body[i].parent;
+    if (p < 0) continue;
+    const BodyDesc<S>& b = body[i];
+    const BodyDesc<S>& a = body[p];
+    if (b.v_idx < a.v_idx || b.v_idx + b.nv_subtree > a.v_idx + a.nv_subtree) return false;
+  }
+  return true;
+}
 
 // coordinate of a 1-DoF joint, mimic folded in
 template <typename S> RBD_HD S joint_angle(const BodyDesc<S>& b, const S* q) {

@@ -32,7 +32,7 @@ enum WorkspaceLayout : int { kFullWorkspace = 0, kLinearWorkspace = 1 };
 
 template <typename S> struct Workspace {
   Transform<S>* X_parent; // (nb)        X_parent_body at q            — every forward pass
-  Transform<S>* X_world; // (nb)        X_world_body at q             — crba, minv, derivatives, kinematics
+  Transform<S>* X_world; // (nb)        X_world_body at q             — minv, derivatives, kinematics (crba on the general path)
   Motion<S>* v;          // (nb)        body velocity: body frame (rnea, aba, kinematics) or world axes
                          //             (world_motion: derivatives, centroidal, the Coriolis matrix)
   Motion<S>* a;          // (nb)        body acceleration incl. -g, in the frame of v
@@ -41,7 +41,7 @@ template <typename S> struct Workspace {
   Mat6<S>* IA;           // (nb)        aba, minv: articulated inertia
   Inertia<S>* Ic;        // (nb)        crba: composite rigid-body inertia (body frame; world frame with mimics)
   Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
-  Motion<S>* S_world;    // (nb x 6)    crba, minv, derivatives: motion subspace columns, world frame
+  Motion<S>* S_world;    // (nb x 6)    minv, derivatives (crba on the general path): motion subspace columns, world frame
   S* Dinv;               // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
   Motion<S>* dVdq;       // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (world frame)
   Motion<S>* dAdq;       // (nb x 6)    rnea_derivatives: a_λ × s + v_λ × dVdq

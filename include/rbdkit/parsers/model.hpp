@@ -61,9 +61,12 @@ class Model {
 
   int nb() const { return static_cast<int>(bodies.size()); }
   bool has_mimic() const;
-  ModelView<double> view() const { return {nb(), nq, nv, has_mimic() ? 1 : 0, bodies.data()}; }
+  // the algorithms' general paths (the view's has_mimic flag): mimic joints, or bodies not in
+  // depth-first order (a ModelBuilder's added otherwise: subtrees_contiguous)
+  bool general_path() const;
+  ModelView<double> view() const { return {nb(), nq, nv, general_path() ? 1 : 0, bodies.data()}; }
   // the bodies in another scalar type (float, dual numbers), constants converted;
-  // view them with ModelView<S>{nb(), nq, nv, has_mimic(), converted.data()}
+  // view them with ModelView<S>{nb(), nq, nv, general_path(), converted.data()}
   template <typename S> std::vector<BodyDesc<S>> bodies_as() const;
 
   // joints that own velocity coordinates, in velocity-coordinate order

@@ -192,8 +192,12 @@ template <typename S> struct Inertia {
 // and, with r_k the columns of R and I = [a b c; b d e; c e f] (Σ r_k r_kᵀ = 1),
 //   R I Rᵀ = f 1 + (r_0 uᵀ + u r_0ᵀ) + (r_1 wᵀ + w r_1ᵀ),
 //   u = (a - f)/2 r_0 + b r_1 + c r_2,   w = (d - f)/2 r_1 + e r_2,
-// so each of the 6 independent entries of I' is three symmetric pairs (6 products): about 60
-// multiplies in all, where R I Rᵀ as two 3×3 products and the shift take about 85
+// so each of the 6 independent entries of I' is three symmetric pairs (6 products): about 70
+// multiplies in all, where R I Rᵀ as two 3×3 products and the shift took about 85. The price:
+// every entry carries a rounding of the order of ε·max|I_kk|, where the two products were exact
+// for a rotation about a frame axis; a small moment next to large ones (a thin rod's about its
+// axis) is then relatively less exact (a rod along x turned about x: I_xx to 5e-5 in float32,
+// where it was 5e-8; the matrix as a whole to ε·|I| either way)
 template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
   const Mat3<S>& R = X.R;
   const S m = Ib.m;
