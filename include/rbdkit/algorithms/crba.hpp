@@ -37,20 +37,18 @@ template <typename S> RBD_HD void crba_store_rows(const ModelView<S>& m, int i, 
   S sign;
   const int fc = joint_frame_column(b, sign);
   if (fc >= 0) {  // S = sign·e_fc: Sᵀ F is one component
-    S* row = M + vi * nv;
     for (int c = vi; c < c_end; ++c) {
       const S x = sign * F[6 * c + fc];
-      row[c] = x;
+      M[vi * nv + c] = x;
       M[c * nv + vi] = x;
     }
-    for (int c = c_end; c < nv; ++c) row[c] = S(0), M[c * nv + vi] = S(0);
-    return;
-  }
-  for (int c = vi; c < c_end; ++c) {
-    S x[6];
-    joint_project(b, load_force(F + 6 * c), x);
-    // the joint's own block: its upper triangle only (l <= c - vi), mirrored
-    for (int l = 0; l < b.nv && vi + l <= c; ++l) M[(vi + l) * nv + c] = x[l], M[c * nv + vi + l] = x[l];
+  } else {
+    for (int c = vi; c < c_end; ++c) {
+      S x[6];
+      joint_project(b, load_force(F + 6 * c), x);
+      // the joint's own block: its upper triangle only (l <= c - vi), mirrored
+      for (int l = 0; l < b.nv && vi + l <= c; ++l) M[(vi + l) * nv + c] = x[l], M[c * nv + vi + l] = x[l];
+    }
   }
   for (int l = 0; l < b.nv; ++l)
     for (int c = c_end; c < nv; ++c) M[(vi + l) * nv + c] = S(0), M[c * nv + vi + l] = S(0);

@@ -142,13 +142,16 @@ template <typename S> RBD_HD void neg_matmul(const S* RBD_RESTRICT A, const S* R
 }
 
 // out (n) = Σ_j a[rows[j]·lda] B[rows[j]·n + r] for r < n, over the `count` listed rows of B
-// (n x n, row-major) in the list's order, i.e. (Bᵀ a)_r: a column of Bᵀ A (of B A for a symmetric
-// B, as M⁻¹) when only the rows listed meet a nonzero of A's column a (stride lda). Each entry is summed from 0 in that order, so with the zero terms
-// of a dense product left out it is that product's number. Host double and float: up to 8 vectors
-// of 16 bytes per register block (8, 4, 2, 1), as neg_matmul; elsewhere the plain loop.
+// (n x n, row-major) in the list's order, i.e. (Bᵀ a)_r: a column of Bᵀ A (of B A for a
+// symmetric B, as M⁻¹) when only the rows listed meet a nonzero of A's column a (stride lda).
+// Each entry is summed from 0 in that order, so with the zero terms of a dense product left out
+// it is that product's number. Host double and float: up to 8 vectors of 16 bytes per register
+// block (8, 4, 2, 1), as neg_matmul, the plain loop for the tail; elsewhere the plain loop
+// (from entry r0).
 template <typename S>
-RBD_HD void scaled_row_sum_plain(const S* B, const S* a, int lda, int n, const int* rows, int count, S* out) {
-  for (int r = 0; r < n; ++r) {
+RBD_HD void scaled_row_sum_plain(const S* B, const S* a, int lda, int n, const int* rows, int count, S* out,
+                                 int r0 = 0) {
+  for (int r = r0; r < n; ++r) {
     S acc = S(0);
     for (int j = 0; j < count; ++j) acc += a[rows[j] * lda] * B[rows[j] * n + r];
     out[r] = acc;
@@ -190,11 +193,7 @@ RBD_HD void scaled_row_sum(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int
     if (r + 4 * L <= n) detail::scaled_row_sum_block<S, 4>(B, a, lda, n, rows, count, r, out), r += 4 * L;
     if (r + 2 * L <= n) detail::scaled_row_sum_block<S, 2>(B, a, lda, n, rows, count, r, out), r += 2 * L;
     if (r + L <= n) detail::scaled_row_sum_block<S, 1>(B, a, lda, n, rows, count, r, out), r += L;
-    for (; r < n; ++r) {
-      S acc = S(0);
-      for (int j = 0; j < count; ++j) acc += a[rows[j] * lda] * B[rows[j] * n + r];
-      out[r] = acc;
-    }
+    scaled_row_sum_plain(B, a, lda, n, rows, count, out, r);
     return;
   }
 #endif
