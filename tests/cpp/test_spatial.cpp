@@ -147,6 +147,32 @@ TEST(Dense, NegMatmulEqualsThePlainLoopBitForBit) {
   check(0.0f);
 }
 
+TEST(Dense, SpdInverseTimesTheMatrixIsTheIdentity) {
+  // A = B Bᵀ + n·1 (SPD, condition ~ 10) for n = 1..8 and the mass-matrix sizes around 36:
+  // A A⁻¹ = 1 to rounding, A⁻¹ exactly symmetric; a singular A is refused
+  for (int n : {1, 2, 3, 4, 5, 6, 7, 8, 36}) {
+    std::vector<double> B(n * n), A(n * n), F(n * n), Ainv(n * n);
+    for (double& x : B) x = uni();
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        double s = r == c ? n : 0.0;
+        for (int k = 0; k < n; ++k) s += B[r * n + k] * B[c * n + k];
+        A[r * n + c] = s;
+      }
+    F = A;
+    ASSERT_TRUE(spd_inverse(F.data(), n, Ainv.data())) << n;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        double s = 0;
+        for (int k = 0; k < n; ++k) s += A[r * n + k] * Ainv[k * n + c];
+        EXPECT_NEAR(s, r == c ? 1.0 : 0.0, 1e-13) << "n " << n << " (" << r << ", " << c << ")";
+        EXPECT_EQ(Ainv[r * n + c], Ainv[c * n + r]);
+      }
+  }
+  double S[9] = {1, 1, 0, 1, 1, 0, 0, 0, 2}, Sinv[9];  // rank 2
+  EXPECT_FALSE(spd_inverse(S, 3, Sinv));
+}
+
 TEST(Dense, ArticulatedUpdateIsIaMinusUDinvUt) {
   // IA - U D⁻¹ Uᵀ for 1, 3 and 6 joint DoFs against the dense product, assigned and added
   for (int n : {1, 3, 6}) {

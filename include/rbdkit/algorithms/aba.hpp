@@ -51,8 +51,16 @@ template <typename S> RBD_HD bool joint_inertia(int n, const Motion<S>* Sc, cons
 
 // the same in body coordinates for body b. A revolute or prismatic joint
 // about a frame axis e_k has S = ±mult·e_(3+k) or e_k, so U = IA S is a column
-// of IA and D one of its diagonal entries
+// of IA and D one of its diagonal entries; a free joint's S is the identity,
+// so U is IA's columns and D is IA
 template <typename S> RBD_HD bool aba_joint_inertia(const BodyDesc<S>& b, const Mat6<S>& IA, Force<S>* U, S* Dinv) {
+  if (b.type == kFree) {
+    S D[36];
+    for (int k = 0; k < 36; ++k) D[k] = IA.m[k];
+    for (int k = 0; k < 6; ++k)
+      U[k] = {{IA(0, k), IA(1, k), IA(2, k)}, {IA(3, k), IA(4, k), IA(5, k)}};
+    return spd_inverse(D, 6, Dinv);
+  }
   S sk = S(0);
   const int c = joint_frame_column(b, sk);
   if (c >= 0) {

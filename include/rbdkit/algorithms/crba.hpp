@@ -30,18 +30,23 @@ namespace rbd {
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
 // the columns F (nv x 6 row-major, each in body i's frame) and zeros over the columns after
 // its subtree (not its descendants'), each mirrored into the lower triangle. Over the pass every
-// entry of M is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows)
-template <typename S> RBD_HD void crba_store_rows(const ModelView<S>& m, int i, const S* F, S* M) {
+// entry of M is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows).
+// fc, sign: joint_frame_column(b, sign)
+template <typename S>
+RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign, const S* F, S* M) {
   const BodyDesc<S>& b = m.body[i];
   const int nv = m.nv, vi = b.v_idx, c_end = vi + b.nv_subtree;
-  S sign;
-  const int fc = joint_frame_column(b, sign);
   if (fc >= 0) {  // S = sign·e_fc: Sᵀ F is one component
     for (int c = vi; c < c_end; ++c) {
       const S x = sign * F[6 * c + fc];
       M[vi * nv + c] = x;
       M[c * nv + vi] = x;
     }
+  } else if (b.type == kFree) {  // S = 1: the rows are the columns F themselves
+    for (int c = vi; c < vi + 6; ++c)  // the joint's own block: its upper triangle, mirrored
+      for (int l = 0; l <= c - vi; ++l) M[(vi + l) * nv + c] = F[6 * c + l], M[c * nv + vi + l] = F[6 * c + l];
+    for (int c = vi + 6; c < c_end; ++c)
+      for (int l = 0; l < 6; ++l) M[(vi + l) * nv + c] = F[6 * c + l], M[c * nv + vi + l] = F[6 * c + l];
   } else {
     for (int c = vi; c < c_end; ++c) {
       S x[6];
@@ -55,7 +60,8 @@ template <typename S> RBD_HD void crba_store_rows(const ModelView<S>& m, int i, 
 }
 
 // backward pass, bodies last to first:
-//   F_c = Ic_i s_c for body i's DoFs c               (its columns join the subtree's)
+//   F_c = Ic_i s_c for body i's DoFs c               (its columns join the subtree's; picks from Ic
+//                                                     for a frame-axis or free joint)
 //   M[v_i.., subtree] = S_iᵀ F                        (crba_store_rows)
 //   Ic_λ += X_λi* Ic_i X_λi⁻¹,  F_subtree <- X_λi* F  (both now in the parent's frame)
 // reads w.X_parent; writes w.Ic (composites, body frames), w.F (nv x 6: the columns), M
@@ -64,8 +70,12 @@ template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m,
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, c_end = vi + b.nv_subtree;
-    for (int k = 0; k < b.nv; ++k) store(w.Ic[i] * joint_subspace_col(b, k), F + 6 * (vi + k));
-    crba_store_rows(m, i, F, M);
+    S sign;
+    const int fc = joint_frame_column(b, sign);
+    if (fc >= 0) store(sign * w.Ic[i].column(fc), F + 6 * vi);  // S = sign·e_fc: a column of Ic
+    else if (b.type == kFree) for (int k = 0; k < 6; ++k) store(w.Ic[i].column(k), F + 6 * (vi + k));
+    else for (int k = 0; k < b.nv; ++k) store(w.Ic[i] * joint_subspace_col(b, k), F + 6 * (vi + k));
+    crba_store_rows(m, i, fc, sign, F, M);
     if (b.parent >= 0) {
       const Transform<S>& X = w.X_parent[i];
       w.Ic[b.parent] += transform_inertia(X, w.Ic[i]);

@@ -11,6 +11,16 @@
 #else
 #define RBD_HD inline
 #endif
+// RBD_HD, and inlined whatever the compiler's size heuristics say: for a short helper that a hot
+// per-body loop calls and that several algorithms of one translation unit share (one copy out of
+// line would make each call pass its result through memory)
+#if defined(__CUDACC__)
+#define RBD_HD_INLINE __host__ __device__ __forceinline__
+#elif defined(__GNUC__) || defined(__clang__)
+#define RBD_HD_INLINE inline __attribute__((always_inline))
+#else
+#define RBD_HD_INLINE inline
+#endif
 // a pointer through which nothing else in its scope reads or writes (lets
 // the compiler vectorise a loop over it); g++, clang and nvcc spell it alike
 #define RBD_RESTRICT __restrict__

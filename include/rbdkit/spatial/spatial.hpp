@@ -181,6 +181,20 @@ template <typename S> struct Inertia {
   RBD_HD Force<S> operator*(const Motion<S>& v) const {
     return {m * v.lin - cross(h, v.ang), I * v.ang + cross(h, v.lin)};
   }
+  // I e_k, column k of the 6 x 6 [m 1, -[h]x; [h]x, I] (e_k: a unit motion, k < 3 linear): picks, no products
+  RBD_HD Force<S> column(int k) const {
+    if (k < 3) {
+      Force<S> f{Vec3<S>::zero(), Vec3<S>::zero()};
+      f.lin[k] = m;
+      f.ang = {k == 0 ? S(0) : (k == 1 ? -h.z : h.y), k == 0 ? h.z : (k == 1 ? S(0) : -h.x),
+               k == 0 ? -h.y : (k == 1 ? h.x : S(0))};
+      return f;
+    }
+    const int j = k - 3;
+    return {{j == 0 ? S(0) : (j == 1 ? h.z : -h.y), j == 0 ? -h.z : (j == 1 ? S(0) : h.x),
+             j == 0 ? h.y : (j == 1 ? -h.x : S(0))},
+            {I(0, j), I(1, j), I(2, j)}};
+  }
   RBD_HD Inertia operator+(const Inertia& o) const { return {m + o.m, h + o.h, I + o.I}; }
   RBD_HD Inertia& operator+=(const Inertia& o) { m += o.m; h += o.h; I = I + o.I; return *this; }
 };
@@ -198,7 +212,7 @@ template <typename S> struct Inertia {
 // for a rotation about a frame axis; a small moment next to large ones (a thin rod's about its
 // axis) is then relatively less exact (a rod along x turned about x: I_xx to 5e-5 in float32,
 // where it was 5e-8; the matrix as a whole to ε·|I| either way)
-template <typename S> RBD_HD Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
+template <typename S> RBD_HD_INLINE Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
   const Mat3<S>& R = X.R;
   const S m = Ib.m;
   const Vec3<S> hr = R * Ib.h;
