@@ -147,6 +147,18 @@ TEST(Dense, NegMatmulEqualsThePlainLoopBitForBit) {
   check(0.0f);
 }
 
+TEST(Spatial, InertiaColumnIsTheInertiaTimesAUnitMotion) {
+  // Inertia::column(k) (picks, no products) against I · e_k for a general inertia (h off the origin)
+  const Inertia<double> I{2.5, {0.3, -0.7, 1.1}, {{1.2, 0.1, -0.2, 0.1, 0.9, 0.05, -0.2, 0.05, 1.4}}};
+  for (int k = 0; k < 6; ++k) {
+    double e[6] = {0, 0, 0, 0, 0, 0}, ref[6], got[6];
+    e[k] = 1;
+    store(I * load_motion(e), ref);
+    store(I.column(k), got);
+    for (int r = 0; r < 6; ++r) EXPECT_EQ(got[r], ref[r]) << "column " << k << ", row " << r;
+  }
+}
+
 TEST(Dense, SpdInverseTimesTheMatrixIsTheIdentity) {
   // A = B Bᵀ + n·1 (SPD, condition ~ 10) for n = 1..8 and the mass-matrix sizes around 36:
   // A A⁻¹ = 1 to rounding, A⁻¹ exactly symmetric; a singular A is refused

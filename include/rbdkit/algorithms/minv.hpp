@@ -56,9 +56,100 @@ RBD_HD bool minv_joint_inertia(const BodyDesc<S>& b, const Transform<S>& X_world
   return joint_inertia(b.nv, Sw, IA, U, Dinv);
 }
 
+// ---- the column work of a one-DoF body, over a run of columns [c0, c1) at once. The passes keep F
+// (backward) and each body's P (forward) as 6 x nv, row r of every column contiguous, so a body's
+// work over its columns is six streams read and written side by side, one row of M⁻¹ with them.
+// minv_columns calls body(c, lane) for each column c, or for 16 bytes of columns at a time (lane: a
+// GCC/clang vector) in host code that nvcc does not see, in double and float; lanes_load/lanes_store
+// move one lane's worth. Each column's operations are the same, in the same order, on either path.
+template <typename T, typename S> RBD_HD T lanes_load(const S* p) {
+  if constexpr (std::is_same<T, S>::value) {
+    return *p;
+  } else {
+    T v;
+    __builtin_memcpy(&v, p, sizeof(T));
+    return v;
+  }
+}
+template <typename T, typename S> RBD_HD void lanes_store(S* p, const T& v) {
+  if constexpr (std::is_same<T, S>::value) *p = v;
+  else __builtin_memcpy(p, &v, sizeof(T));
+}
+template <typename S, typename Body> RBD_HD_INLINE void minv_columns(int c0, int c1, const Body& body) {
+  int c = c0;
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
+  if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
+    typedef S V __attribute__((vector_size(16)));
+    constexpr int L = 16 / sizeof(S);
+    for (; c + L <= c1; c += L) body(c, V{});
+  }
+#endif
+  for (; c < c1; ++c) body(c, S(0));
+}
+
+// row[c] = nd (sᵀ F_c) for c in [c0, c1): a one-DoF body's row of M⁻¹ over its descendants' columns
+// (nd = -D⁻¹; F 6 x nv)
+template <typename S>
+RBD_HD void minv_row_from_columns(const Motion<S>& sw, S nd, const S* RBD_RESTRICT F, int nv, int c0, int c1,
+                                  S* RBD_RESTRICT row) {
+  const S s0 = sw.lin.x, s1 = sw.lin.y, s2 = sw.lin.z, s3 = sw.ang.x, s4 = sw.ang.y, s5 = sw.ang.z;
+  minv_columns<S>(c0, c1, [=](int c, auto lane) {
+    using T = decltype(lane);
+    const T f0 = lanes_load<T>(F + c), f1 = lanes_load<T>(F + nv + c), f2 = lanes_load<T>(F + 2 * nv + c);
+    const T f3 = lanes_load<T>(F + 3 * nv + c), f4 = lanes_load<T>(F + 4 * nv + c), f5 = lanes_load<T>(F + 5 * nv + c);
+    lanes_store(row + c, T(nd * ((s0 * f0 + s1 * f1 + s2 * f2) + (s3 * f3 + s4 * f4 + s5 * f5))));
+  });
+}
+
+// F_c += row[c] u for c in [c0, c1) (F 6 x nv): the subtree's columns handed to the parent
+template <typename S>
+RBD_HD void minv_columns_add(const Force<S>& u, const S* RBD_RESTRICT row, int nv, int c0, int c1,
+                             S* RBD_RESTRICT F) {
+  const S u0 = u.lin.x, u1 = u.lin.y, u2 = u.lin.z, u3 = u.ang.x, u4 = u.ang.y, u5 = u.ang.z;
+  minv_columns<S>(c0, c1, [=](int c, auto lane) {
+    using T = decltype(lane);
+    const T x = lanes_load<T>(row + c);
+    lanes_store(F + c, T(lanes_load<T>(F + c) + x * u0));
+    lanes_store(F + nv + c, T(lanes_load<T>(F + nv + c) + x * u1));
+    lanes_store(F + 2 * nv + c, T(lanes_load<T>(F + 2 * nv + c) + x * u2));
+    lanes_store(F + 3 * nv + c, T(lanes_load<T>(F + 3 * nv + c) + x * u3));
+    lanes_store(F + 4 * nv + c, T(lanes_load<T>(F + 4 * nv + c) + x * u4));
+    lanes_store(F + 5 * nv + c, T(lanes_load<T>(F + 5 * nv + c) + x * u5));
+  });
+}
+
+// the forward step of a one-DoF body over columns [c0, c1):
+//   row[c] -= d (uᵀ P_λ,c),  P_c = P_λ,c + row[c] s       (Pp = P_λ, 6 x nv; null at a root: P_c = row[c] s)
+template <typename S>
+RBD_HD void minv_forward_row(const Force<S>& u, const Motion<S>& sw, S d, const S* RBD_RESTRICT Pp, int nv, int c0,
+                             int c1, S* RBD_RESTRICT row, S* RBD_RESTRICT P) {
+  const S s0 = sw.lin.x, s1 = sw.lin.y, s2 = sw.lin.z, s3 = sw.ang.x, s4 = sw.ang.y, s5 = sw.ang.z;
+  if (!Pp) {
+    minv_columns<S>(c0, c1, [=](int c, auto lane) {
+      using T = decltype(lane);
+      const T x = lanes_load<T>(row + c);
+      lanes_store(P + c, T(x * s0)), lanes_store(P + nv + c, T(x * s1)), lanes_store(P + 2 * nv + c, T(x * s2));
+      lanes_store(P + 3 * nv + c, T(x * s3)), lanes_store(P + 4 * nv + c, T(x * s4));
+      lanes_store(P + 5 * nv + c, T(x * s5));
+    });
+    return;
+  }
+  const S u0 = u.lin.x, u1 = u.lin.y, u2 = u.lin.z, u3 = u.ang.x, u4 = u.ang.y, u5 = u.ang.z;
+  minv_columns<S>(c0, c1, [=](int c, auto lane) {
+    using T = decltype(lane);
+    const T p0 = lanes_load<T>(Pp + c), p1 = lanes_load<T>(Pp + nv + c), p2 = lanes_load<T>(Pp + 2 * nv + c);
+    const T p3 = lanes_load<T>(Pp + 3 * nv + c), p4 = lanes_load<T>(Pp + 4 * nv + c), p5 = lanes_load<T>(Pp + 5 * nv + c);
+    const T x = lanes_load<T>(row + c) - d * ((p0 * u0 + p1 * u1 + p2 * u2) + (p3 * u3 + p4 * u4 + p5 * u5));
+    lanes_store(row + c, x);
+    lanes_store(P + c, T(p0 + x * s0)), lanes_store(P + nv + c, T(p1 + x * s1));
+    lanes_store(P + 2 * nv + c, T(p2 + x * s2)), lanes_store(P + 3 * nv + c, T(p3 + x * s3));
+    lanes_store(P + 4 * nv + c, T(p4 + x * s4)), lanes_store(P + 5 * nv + c, T(p5 + x * s5));
+  });
+}
+
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
 // writes w.X_parent, w.X_world, w.Ic (the world body inertias), w.IA, w.U (world
-// frame), w.Dinv, w.S_world, w.F (nv x 6), Minv (upper part). false if some D
+// frame; not a free root's), w.Dinv, w.S_world, w.F (6 x nv), Minv (upper part). false if some D
 // is not positive definite.
 template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
   const int nv = m.nv;
@@ -70,7 +161,8 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
-  for (int k = 0; k < 6 * nv; ++k) w.F[k] = S(0);
+  S* F = w.F;  // 6 x nv: the columns of F_i, row r of every column at r·nv
+  for (int k = 0; k < 6 * nv; ++k) F[k] = S(0);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv, c_end = b.v_idx + b.nv_subtree;
@@ -86,71 +178,88 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
       for (int l = 0; l < ni; ++l) Minv[(vi + k) * nv + vi + l] = Dinv[k * ni + l];
     // descendants' columns: -D⁻¹ Sᵀ F (one DoF, the common case: a scalar D⁻¹)
     if (ni == 1) {
-      for (int c = vi + 1; c < c_end; ++c) Minv[vi * nv + c] = -Dinv[0] * dot(Sw[0], load_force(w.F + 6 * c));
+      minv_row_from_columns(Sw[0], -Dinv[0], F, nv, vi + 1, c_end, Minv + vi * nv);
     } else
     for (int c = vi + ni; c < c_end; ++c) {
       S sf[6];
-      joint_project_in(b, w.X_world[i], Sw, load_force(w.F + 6 * c), sf);
+      joint_project_in(b, w.X_world[i], Sw, Force<S>{load3(F + c, nv), load3(F + 3 * nv + c, nv)}, sf);
       if (ni == 6) neg_dinv_times<6>(Dinv, sf, Minv + vi * nv + c, nv);  // a free joint: fixed-size loops
       else neg_dinv_times(ni, Dinv, sf, Minv + vi * nv + c, nv);
     }
     // F_λ = F_i + U Minv_i· over the subtree columns (in place)
     if (b.parent < 0) continue;
+    if (ni == 1) {
+      minv_columns_add(U[0], Minv + vi * nv, nv, vi, c_end, F);
+      continue;
+    }
     for (int c = vi; c < c_end; ++c) {
-      Force<S> fc = load_force(w.F + 6 * c);
+      Force<S> fc{load3(F + c, nv), load3(F + 3 * nv + c, nv)};
       for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
-      store(fc, w.F + 6 * c);
+      store3(fc.lin, F + c, nv), store3(fc.ang, F + 3 * nv + c, nv);
     }
   }
   return true;
 }
 
 // body i's forward step in column c >= v_idx: Minv_i,c -= D⁻¹ Uᵀ P_λ,c, P_i,c = P_λ,c + S Minv_i,c (the
-// root has no P_λ).  reads w.U, w.S_world (world frame), w.Dinv, the parent's w.P; writes body i's
-// column c of w.P (nb x nv x 6) and of Minv
-template <typename S> RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int c, S* Minv) {
+// root has no P_λ). P and Pp point at column c of body i's and its parent's P (Pp null at a root), the
+// column's six entries rs apart. reads w.U, w.S_world (world frame), w.Dinv; writes column c of P and
+// of Minv
+template <typename S>
+RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int c, S* Minv, S* P, const S* Pp,
+                              int rs) {
   const int nv = m.nv;
   const BodyDesc<S>& b = m.body[i];
   const int vi = b.v_idx, ni = b.nv;
   const Force<S>* U = w.U + 6 * i;
   const Motion<S>* Sw = w.S_world + 6 * i;
   const S* Dinv = w.Dinv + 36 * i;
-  S* P = w.P + 6 * nv * i + 6 * c;
-  const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent + 6 * c : nullptr;
+  Motion<S> pc = Motion<S>::zero();
+  if (Pp) pc = {load3(Pp, rs), load3(Pp + 3 * rs, rs)};
   if (ni == 1 && Pp) {  // one DoF: a scalar D⁻¹, one U and one S
-    Motion<S> pc = load_motion(Pp);
     S& x = Minv[vi * nv + c];
     x -= Dinv[0] * dot(pc, U[0]);
     pc += x * Sw[0];
-    store(pc, P);
-    return;
-  }
-  Motion<S> pc = Motion<S>::zero();
-  if (Pp) {
-    pc = load_motion(Pp);
-    S up[6];
-    for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
-    for (int k = 0; k < ni; ++k) {
-      S acc = S(0);
-      for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
-      Minv[(vi + k) * nv + c] -= acc;
+  } else {
+    if (Pp) {
+      S up[6];
+      for (int l = 0; l < ni; ++l) up[l] = dot(pc, U[l]);
+      for (int k = 0; k < ni; ++k) {
+        S acc = S(0);
+        for (int l = 0; l < ni; ++l) acc += Dinv[k * ni + l] * up[l];
+        Minv[(vi + k) * nv + c] -= acc;
+      }
     }
+    for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
   }
-  for (int k = 0; k < ni; ++k) pc += Minv[(vi + k) * nv + c] * Sw[k];
-  store(pc, P);
+  store3(pc.lin, P, rs), store3(pc.ang, P + 3 * rs, rs);
 }
 
-// forward pass over columns ≥ v_idx (minv_forward_step), parents first
+// forward pass over columns ≥ v_idx, parents first: minv_forward_step's work, each body's P_i as
+// 6 x nv (w.P + 6 nv i; a one-DoF body's columns at once, minv_forward_row)
 template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
-  for (int i = 0; i < m.nb; ++i)
-    for (int c = m.body[i].v_idx; c < m.nv; ++c) minv_forward_step(m, w, i, c, Minv);
+  const int nv = m.nv;
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    const int vi = b.v_idx, ni = b.nv;
+    const Force<S>* U = w.U + 6 * i;
+    const Motion<S>* Sw = w.S_world + 6 * i;
+    const S* Dinv = w.Dinv + 36 * i;
+    S* P = w.P + 6 * nv * i;
+    const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
+    if (ni == 1) {
+      minv_forward_row(U[0], Sw[0], Dinv[0], Pp, nv, vi, nv, Minv + vi * nv, P);
+      continue;
+    }
+    for (int c = vi; c < nv; ++c) minv_forward_step(m, w, i, c, Minv, P + c, Pp ? Pp + c : nullptr, nv);
+  }
 }
 
 // column c of M⁻¹ (its upper part and its joint blocks), after the articulated inertias (w.U, w.Dinv,
 // w.S_world, w.X_world): minv_backward_pass's column work for c (the bodies whose subtree holds c,
 // children first; F's column c in a local, w.F untouched) then minv_forward_pass's (the bodies with
-// v_idx <= c, parents first). Column c reads and writes only column c of Minv and of w.P, so columns
-// may run side by side (minv_team). Below the diagonal, only c's own joint block is written (the
+// v_idx <= c, parents first). Column c reads and writes only column c of Minv and of w.P (here each
+// body's P is nv x 6, a column's six entries together), so columns may run side by side (minv_team). Below the diagonal, only c's own joint block is written (the
 // rest is zero until the mirror). The same values as the two passes
 template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S>& w, int c, S* Minv) {
   const int nv = m.nv;
@@ -177,7 +286,10 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
     for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
   }
   for (int i = 0; i < m.nb; ++i)  // parents first
-    if (m.body[i].v_idx <= c) minv_forward_step(m, w, i, c, Minv);
+    if (m.body[i].v_idx <= c) {
+      const int p = m.body[i].parent;
+      minv_forward_step(m, w, i, c, Minv, w.P + 6 * nv * i + 6 * c, p >= 0 ? w.P + 6 * nv * p + 6 * c : nullptr, 1);
+    }
 }
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and

@@ -40,7 +40,7 @@ template <typename S> struct Workspace {
   Motion<S>* c;          // (nb)        aba: velocity-product acceleration v × vJ
   Mat6<S>* IA;           // (nb)        aba, minv: articulated inertia
   Inertia<S>* Ic;        // (nb)        crba: composite rigid-body inertia (body frame; world frame with mimics)
-  Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame)
+  Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame; a free root's unset)
   Motion<S>* S_world;    // (nb x 6)    minv, derivatives (crba on the general path): motion subspace columns, world frame
   S* Dinv;               // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
   Motion<S>* dVdq;       // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (world frame)
@@ -49,9 +49,10 @@ template <typename S> struct Workspace {
   Force<S>* h;           // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (world)
   InertiaRate<S>* B;     // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
   S* u;                  // (nv)        aba: u = tau - Sᵀ·pA
-  S* F;                  // (nv x 6)    minv: force sensitivities ∂pA/∂tau, world frame, one 6D column per tau;
-                         //             crba: the columns Ic s riding up the tree
-  S* P;                  // (nb x nv x 6) minv: acceleration sensitivities ∂a/∂tau, world frame (full layout only)
+  S* F;                  // (6 nv)      minv: force sensitivities ∂pA/∂tau, world frame, 6 x nv (row r of every tau
+                         //             column at r·nv); crba: the columns Ic s riding up the tree, nv x 6
+  S* P;                  // (6 nv nb)   minv: acceleration sensitivities ∂a/∂tau, world frame, per body 6 x nv in the
+                         //             serial pass, nv x 6 in minv_column (full layout only)
   // ---- second order (algorithms/idsva_so.hpp, fdsva_so.hpp); nc = nv + nb bounds the joint DoFs
   // on one root path (a mimic body adds a DoF of its own there)
   Motion<S>* so_m;       // (nc x 4)    idsva_so: s, ψ̇, ψ̈, σ of the DoFs from the current body to the root, its frame
