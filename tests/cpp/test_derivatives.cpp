@@ -167,4 +167,54 @@ TEST_P(Derivatives, BodyFrameCrbaEqualsWorldFrameCrba) {
   }
 }
 
+// M⁻¹'s serial passes (F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
+// 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path the team
+// kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and in float
+// (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
+// float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there the
+// double result is checked against M M⁻¹ = 1
+TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  WorkspaceBuffer buf(m);
+  Workspace<double>& w = buf.get();
+  const ModelView<double> mv = m.view();
+  const std::vector<BodyDesc<float>> bodies_f = m.bodies_as<float>();
+  const ModelView<float> mf = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, bodies_f.data()};
+  WorkspaceBufferT<float> buf_f(m);
+  const int nv = m.nv;
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(nv), q(m.nq);
+  for (int trial = 0; trial < 3; ++trial) {
+    for (auto& x : d) x = 2 * U(rng);
+    integrate(mv, q0.data(), d.data(), q.data());
+    std::vector<double> Mi(nv * nv), Mc(nv * nv, 0.0), M(nv * nv);
+    ASSERT_TRUE(minv(mv, w, q.data(), true, Mi.data()));
+    if (!mv.has_mimic) {
+      std::vector<double> scratch(nv * nv);
+      ASSERT_TRUE(minv_backward_pass(mv, w, q.data(), scratch.data()));
+      for (int c = 0; c < nv; ++c) minv_column(mv, w, c, Mc.data());
+      double scale = 0, err = 0;
+      for (int r = 0; r < nv; ++r)
+        for (int c = r; c < nv; ++c) {
+          scale = std::max(scale, std::abs(Mi[r * nv + c]));
+          err = std::max(err, std::abs(Mi[r * nv + c] - Mc[r * nv + c]));
+        }
+      EXPECT_LT(err, 1e-13 * scale) << "trial " << trial;
+    } else {
+      crba(mv, w, q.data(), M.data());
+      for (int r = 0; r < nv; ++r)
+        for (int c = 0; c < nv; ++c) {
+          double s = 0;
+          for (int k = 0; k < nv; ++k) s += M[r * nv + k] * Mi[k * nv + c];
+          EXPECT_NEAR(s, r == c ? 1.0 : 0.0, 1e-9) << r << ", " << c;
+        }
+    }
+    std::vector<float> qf(q.begin(), q.end()), Mif(nv * nv);
+    ASSERT_TRUE(minv(mf, buf_f.get(), qf.data(), true, Mif.data()));
+    std::vector<double> Mid(Mif.begin(), Mif.end());
+    EXPECT_LT(max_rel_err(Mid, Mi), 2e-3) << "float, trial " << trial;  // cond(M)·ε, registry_helpers.hpp
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Models, Derivatives, ::testing::ValuesIn(all_cases()), rbd_test::case_name);

@@ -147,6 +147,24 @@ RBD_HD void minv_forward_row(const Force<S>& u, const Motion<S>& sw, S d, const 
   });
 }
 
+// out_r[c] = Σ_k A(r, k) in_k[c] for c in [c0, c1) and r < 6 (k from 0 in order): a 6 x 6 applied to
+// columns kept as six rows (in's row k at in + k·is, out's row r at out + r·os). A free root's column
+// work: its rows of M⁻¹ from F, its P from those rows
+template <typename S>
+RBD_HD void mat6_times_rows(const Mat6<S>& A, const S* RBD_RESTRICT in, int is, int c0, int c1, S* RBD_RESTRICT out,
+                            int os) {
+  minv_columns<S>(c0, c1, [=](int c, auto lane) {
+    using T = decltype(lane);
+    T x[6];
+    for (int k = 0; k < 6; ++k) x[k] = lanes_load<T>(in + k * is + c);
+    for (int r = 0; r < 6; ++r) {
+      T acc = A(r, 0) * x[0];
+      for (int k = 1; k < 6; ++k) acc = acc + A(r, k) * x[k];
+      lanes_store(out + r * os + c, acc);
+    }
+  });
+}
+
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
 // writes w.X_parent, w.X_world, w.Ic (the world body inertias), w.IA, w.U (world
 // frame; not a free root's), w.Dinv, w.S_world, w.F (6 x nv), Minv (upper part). false if some D
@@ -179,6 +197,15 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     // descendants' columns: -D⁻¹ Sᵀ F (one DoF, the common case: a scalar D⁻¹)
     if (ni == 1) {
       minv_row_from_columns(Sw[0], -Dinv[0], F, nv, vi + 1, c_end, Minv + vi * nv);
+    } else if (b.type == kFree && b.parent < 0) {  // -D⁻¹ X_0b⁻¹ F as one 6 x 6 on the rows of F
+      Mat6<S> G;
+      for (int k = 0; k < 6; ++k) {  // column k of the force transform X_0b⁻¹, then of -D⁻¹ times it
+        S e[6] = {S(0), S(0), S(0), S(0), S(0), S(0)}, xk[6];
+        e[k] = S(1);
+        store(w.X_world[i].act_inv(load_force(e)), xk);
+        neg_dinv_times<6>(Dinv, xk, &G(0, k), 6);
+      }
+      mat6_times_rows(G, F, nv, vi + 6, c_end, Minv + vi * nv, nv);
     } else
     for (int c = vi + ni; c < c_end; ++c) {
       S sf[6];
@@ -249,6 +276,16 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
     const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
     if (ni == 1) {
       minv_forward_row(U[0], Sw[0], Dinv[0], Pp, nv, vi, nv, Minv + vi * nv, P);
+      continue;
+    }
+    if (!Pp && ni == 6) {  // a free root: P = S Minv_i· as one 6 x 6 (S's columns) on its six rows
+      Mat6<S> Sm;
+      for (int k = 0; k < 6; ++k) {
+        S sk[6];
+        store(Sw[k], sk);
+        for (int r = 0; r < 6; ++r) Sm(r, k) = sk[r];
+      }
+      mat6_times_rows(Sm, Minv + vi * nv, nv, vi, nv, P, nv);
       continue;
     }
     for (int c = vi; c < nv; ++c) minv_forward_step(m, w, i, c, Minv, P + c, Pp ? Pp + c : nullptr, nv);
