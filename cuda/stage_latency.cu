@@ -10,6 +10,11 @@
 // run on a machine with a GPU (scripts/gpu-check.sh):
 //
 //   cuda_stage_latency <robots dir>
+//
+// The second table times the phases of the team kernels (src/cuda/team_kernels.cuh)
+// the same way: one block of kTeam threads, one sample, its first thread reading
+// the clock after each phase's last barrier. It says which serial phase decides a
+// team's time (∇FD's first phase is M⁻¹'s team beside ABA on one thread).
 #include <cuda_runtime.h>
 
 #include <cstdio>
@@ -24,6 +29,7 @@
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/model/configuration.hpp"
 #include "rbdkit/parsers/model.hpp"
+#include "../src/cuda/team_kernels.cuh"
 
 using namespace rbd;
 
@@ -72,6 +78,75 @@ __global__ void stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S 
       __threadfence_block();
       const long long dt = clock64() - t0;
       if (dt < cycles[k]) cycles[k] = dt;
+    }
+  }
+}
+
+// the team kernels' phases, in the order ∇FD runs them, then ID's and FD's first phase
+constexpr int kTeamStages = 9;
+const char* const kTeamStageNames[kTeamStages] = {
+    "M⁻¹ (minv_team on a warp)", "ABA (one thread)", "∇FD phase 1: M⁻¹ on a warp beside ABA",
+    "FD phase 1: M⁻¹ on a warp beside RNEA", "∇FD phase 2: ∇ID (rnea_derivatives_team)",
+    "∇FD phase 3: -M⁻¹ ∂ID (two nv x nv)", "∇FD (aba_derivatives_team, whole)", "ID (rnea_team)",
+    "M⁻¹ (minv_team on the block)"};
+
+template <typename S>
+__global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
+                            int ws_in_shared, unsigned long ws_bytes, int reps, long long* cycles, S* sink) {
+  extern __shared__ __align__(16) unsigned char shared_ws[];
+  unsigned char* slice = ws_in_shared ? shared_ws : global_ws;
+  Workspace<S> w = carve_workspace<S>(slice, m.nb, m.nv);
+  cuda::BlockTeam t;
+  t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: ABA's linear workspace, ∂ID, qdd, flags
+  const int nv = m.nv, n2 = nv * nv;
+  Workspace<S> wa = carve_workspace<S>(t.extra, m.nb, nv, kLinearWorkspace);
+  S* dq = reinterpret_cast<S*>(t.extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));
+  S* dv = dq + n2;
+  S* qdd = dv + n2 + nv;  // (after aba_derivatives_team's tau - c)
+  int* ok = reinterpret_cast<int*>(t.extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
+  S* out = sink;
+  S* D1 = sink + nv;
+  S* D2 = sink + nv + n2;
+  if (threadIdx.x == 0)
+    for (int k = 0; k < kTeamStages; ++k) cycles[k] = 1ll << 62;
+  for (int r = 0; r < reps; ++r) {
+    for (int k = 0; k < kTeamStages; ++k) {
+      __syncthreads();
+      const long long t0 = clock64();
+      switch (k) {
+        case 0: t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok + 1); }, [] {}); break;
+        case 1: t.beside([](const auto&) {}, [&] { ok[0] = aba(m, wa, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); }); break;
+        case 2:
+          t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok + 1); },
+                   [&] { ok[0] = aba(m, wa, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); });
+          break;
+        case 3:
+          t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok + 1); },
+                   [&] {
+                     rnea(m, wa, q, qd, static_cast<const S*>(nullptr), static_cast<const S*>(nullptr), gravity, out);
+                     for (int j = 0; j < nv; ++j) out[j] = tau[j] - out[j];
+                   });
+          break;
+        case 4: rnea_derivatives_team(t, m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, dq, dv, true); break;
+        case 5:
+          t.each(2 * n2, [&](long e) {
+            const S* D = e < n2 ? dq : dv;
+            const int row = static_cast<int>(e % n2) / nv, c = static_cast<int>(e % nv);
+            S acc = S(0);
+            for (int l = 0; l < nv; ++l) acc += w.dense[row * nv + l] * D[l * nv + c];
+            (e < n2 ? D1 : D2)[row * nv + c] = -acc;
+          });
+          break;
+        case 6:
+          aba_derivatives_team(t, m, w, t.extra, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, D1, D2);
+          break;
+        case 7: rnea_team(t, m, w, q, qd, qd, static_cast<const S*>(nullptr), gravity, out); break;
+        case 8: minv_team(t, m, w, q, true, w.dense, ok + 1); break;
+        default: break;
+      }
+      __syncthreads();
+      const long long dt = clock64() - t0;
+      if (threadIdx.x == 0 && dt < cycles[k]) cycles[k] = dt;
     }
   }
 }
@@ -129,8 +204,27 @@ template <typename S> void run(const Model& model, const char* label, int reps) 
     }
     std::printf("\n");
   }
+  // the team kernels' phases: a block of kTeam threads, the slice (workspace, then the team's extra)
+  // in shared memory where it fits
+  const unsigned long team_bytes = ws_bytes + ((aba_derivatives_team_bytes<S>(nb, nv) + 255ul) & ~255ul);
+  unsigned char* d_team_ws;
+  long long* d_team_cycles;
+  CHECK_CUDA(cudaMalloc(&d_team_ws, team_bytes));
+  CHECK_CUDA(cudaMalloc(&d_team_cycles, kTeamStages * sizeof(long long)));
+  CHECK_CUDA(cudaFuncSetAttribute(team_stages<S>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  const bool team_shared = team_bytes <= static_cast<unsigned long>(shared_max);
+  team_stages<S><<<1, cuda::kTeam, team_shared ? team_bytes : 0>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_team_ws,
+                                                                   team_shared, ws_bytes, 20, d_team_cycles, d_sink);
+  CHECK_CUDA(cudaGetLastError());
+  CHECK_CUDA(cudaDeviceSynchronize());
+  long long tc[kTeamStages];
+  CHECK_CUDA(cudaMemcpy(tc, d_team_cycles, sizeof(tc), cudaMemcpyDeviceToHost));
+  std::printf("\n%s, %s, a team of %d threads, slice %lu bytes in %s memory\n| team phase | cycles | µs |\n|---|---:|---:|\n",
+              label, sizeof(S) == 8 ? "float64" : "float32", cuda::kTeam, team_bytes, team_shared ? "shared" : "global");
+  for (int k = 0; k < kTeamStages; ++k)
+    std::printf("| %s | %lld | %.2f |\n", kTeamStageNames[k], tc[k], tc[k] / (clock_khz * 1e-3));
   cudaFree(d_bodies), cudaFree(d_q), cudaFree(d_qd), cudaFree(d_tau), cudaFree(d_sink), cudaFree(d_cycles),
-      cudaFree(d_ws);
+      cudaFree(d_ws), cudaFree(d_team_ws), cudaFree(d_team_cycles);
 }
 
 int main(int argc, char** argv) {

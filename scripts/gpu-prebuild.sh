@@ -11,10 +11,12 @@
 #   build/gpu/        the library with the real kernels, the C++ tests, the kernel check
 #   .gpu/wheel/*.whl  the Python package on that library, for PYTHON
 #   .gpu/lib/         the shared tinyxml2 that both link
-# On the GPU machine, with these copied beside the source tree:
+#   .gpu/carry.tar.xz all that the GPU machine needs of the above, in one file (about 50 MB: the
+#                     `device` tool carries at most 64 MB with the source tree, and the uncompressed
+#                     paths had grown to 69 MB)
+# On the GPU machine, with .gpu/carry.tar.xz copied beside the source tree (the `device` tool's carry):
 #   GPU_CHECK_PREBUILT=1 scripts/gpu-check.sh [bench/gpu.py's options]
-# The paths to copy (the `device` tool's carry; about 45 MB): .gpu build/gpu/CMakeCache.txt
-#   build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency build/gpu/tests/cpp/rbdkit_tests
+# which unpacks it first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${1:-python3}
@@ -33,4 +35,9 @@ PIP_BREAK_SYSTEM_PACKAGES=1 PIP_ROOT_USER_ACTION=ignore "$PY" -m pip wheel -q --
   -w .gpu/wheel . -Cbuild-dir=build/gpu-py -Ccmake.define.RBDKIT_PREBUILT_LIBRARY="$PWD/build/gpu/librbdkit.a"
 lib=$(ldd build/gpu/tests/cpp/rbdkit_tests | awk '/libtinyxml2/ {print $3}')
 [[ -z "$lib" ]] || cp -L "$lib" .gpu/lib/  # (none to copy where tinyxml2 is linked statically)
-du -sh .gpu build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency build/gpu/tests/cpp/rbdkit_tests
+# the binaries without their symbol tables, and everything in one compressed file
+carried=(build/gpu/CMakeCache.txt build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency
+  build/gpu/tests/cpp/rbdkit_tests .gpu/lib .gpu/wheel)
+strip build/gpu/cuda_kernel_check build/gpu/cuda_stage_latency build/gpu/tests/cpp/rbdkit_tests
+tar cf - "${carried[@]}" | xz -T"$JOBS" -6 > .gpu/carry.tar.xz
+du -sh "${carried[@]}" .gpu/carry.tar.xz

@@ -46,6 +46,7 @@ constexpr int kTeam = 64;  // threads per sample: two warps (Team::beside splits
 // extra: the team's own memory in the sample's work slice (TeamOp<Op>::extra_bytes, at its end)
 template <int N> struct GpuTeam {
   static constexpr bool cooperative = true;
+  static constexpr int threads = N;
   unsigned char* extra = nullptr;
   RBD_HD static void barrier() {
 #if defined(__CUDA_ARCH__)
@@ -102,6 +103,7 @@ using WarpTeam = GpuTeam<32>;
 
 struct SerialTeam {
   static constexpr bool cooperative = true;
+  static constexpr int threads = kTeam;  // (the block it stands for: the same tiles as there)
   unsigned char* extra = nullptr;
   template <typename F> void each(long n, F&& f) const {
     for (long k = n - 1; k >= 0; --k) f(k);

@@ -2,12 +2,15 @@
 // inertia, checked on random values.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
 #include "rbdkit/algorithms/aba.hpp"
 #include "rbdkit/algorithms/dense.hpp"
 #include "rbdkit/model/configuration.hpp"
+#include "rbdkit/model/team.hpp"
 #include "rbdkit/spatial/lie.hpp"
 #include "rbdkit/spatial/spatial.hpp"
 
@@ -142,6 +145,60 @@ TEST(Dense, NegMatmulEqualsThePlainLoopBitForBit) {
         neg_matmul_plain(A.data(), B.data(), n, cols, ref.data());
         for (int k = 0; k < n * cols; ++k) ASSERT_EQ(out[k], ref[k]) << n << " x " << cols << " @ " << k;
       }
+  };
+  check(0.0);
+  check(0.0f);
+}
+
+// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
+// indices one after another, the last first
+struct ReversedTeam {
+  static constexpr bool cooperative = true;
+  static constexpr int threads = 64;
+  template <typename F> void each(long n, F&& f) const {
+    for (long k = n - 1; k >= 0; --k) f(k);
+  }
+};
+
+TEST(Dense, TeamMatmulTilesEqualThePlainProduct) {
+  // matmul_tiles (2 x 2 and 4 x 4 tiles, edge tiles clamped) against the triple loop in double, in both
+  // precisions, with the sign, for products whose tile side is 2 (iiwa's 7 x 7) and 4 (floating
+  // Atlas's 36 x 36), and matmul on a team. Within the sum's rounding bound n·eps·Σ|a||b| (the same
+  // order of sums, but a compiler may fuse a multiply-add in one loop and not in the other), and
+  // every entry written exactly once (C starts as NaN)
+  auto check = [](auto zero) {
+    using T = decltype(zero);
+    const double eps = std::numeric_limits<T>::epsilon();
+    int sides[2] = {0, 0};
+    for (int r : {1, 3, 7, 18, 36})
+      for (int n : {1, 5, 36})
+        for (int c : {1, 7, 36}) {
+          const T nan = std::numeric_limits<T>::quiet_NaN();
+          std::vector<T> A(r * n), B1(n * c), B2(n * c), C1(r * c, nan), C2(r * c, nan), P(r * c, nan);
+          for (auto& a : A) a = static_cast<T>(uni());
+          for (auto& b : B1) b = static_cast<T>(uni());
+          for (auto& b : B2) b = static_cast<T>(uni());
+          const T* B[2] = {B1.data(), B2.data()};
+          T* C[2] = {C1.data(), C2.data()};
+          matmul_tiles(ReversedTeam{}, 64, A.data(), B, C, 2, r, n, c, T(-1));
+          matmul(ReversedTeam{}, A.data(), B1.data(), P.data(), r, n, c);
+          ++sides[team_tile_side(r, 2 * c, 64) / 4];
+          for (int i = 0; i < r; ++i)
+            for (int j = 0; j < c; ++j) {
+              double s1 = 0, s2 = 0, bound = 0;
+              for (int k = 0; k < n; ++k) {
+                s1 += double(A[i * n + k]) * B1[k * c + j], s2 += double(A[i * n + k]) * B2[k * c + j];
+                bound += std::abs(double(A[i * n + k])) * (std::abs(double(B1[k * c + j])) + std::abs(double(B2[k * c + j])));
+              }
+              bound *= n * eps;
+              const int e = i * c + j;
+              ASSERT_LE(std::abs(C1[e] + s1), bound) << r << " x " << n << " x " << c << " @ " << e;
+              ASSERT_LE(std::abs(C2[e] + s2), bound) << r << " x " << n << " x " << c << " @ " << e;
+              ASSERT_LE(std::abs(P[e] - s1), bound) << "matmul on a team, " << r << " x " << c << " @ " << e;
+            }
+        }
+    EXPECT_GT(sides[0], 0);  // (some products in 2 x 2 tiles,
+    EXPECT_GT(sides[1], 0);  //  some in 4 x 4)
   };
   check(0.0);
   check(0.0f);

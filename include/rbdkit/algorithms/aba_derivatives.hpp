@@ -9,6 +9,7 @@
 #include "rbdkit/algorithms/aba.hpp"
 #include "rbdkit/algorithms/minv.hpp"
 #include "rbdkit/algorithms/rnea_derivatives.hpp"
+#include "rbdkit/model/team.hpp"
 
 namespace rbd {
 
@@ -113,36 +114,47 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 }
 
 // aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
-// for a model without mimic joints: ABA for qdd on one thread, in its own workspace (ABA's, linear, in
-// `extra`), beside M⁻¹ on the first warp (minv_team); the derivative passes on M⁻¹'s placements
-// (rnea_derivatives_team); then every entry of the two products -M⁻¹ ∂ID. The same results as
-// aba_derivatives (each entry's sums in the same order), M⁻¹ left in w.dense as there.
+// for a model without mimic joints:
+//   - M⁻¹ on the first warp (minv_team) beside the bias c = RNEA(q, qd, 0, f_ext) on one thread, in a
+//     workspace of its own (RNEA's, linear, in `extra`); then qdd = M⁻¹ (tau - c), a row per index
+//     (forward_dynamics's qdd, as FD's team computes it);
+//   - the derivative passes on M⁻¹'s placements (rnea_derivatives_team);
+//   - the two products -M⁻¹ ∂ID in tiles (matmul_tiles; each entry's sum in aba_derivatives's order).
+// qdd is M⁻¹ (tau - c), not ABA's: the two agree to rounding, not bit for bit, so a team's step gradient
+// gives x⁺ to the last bits of the step's. ABA on one thread took 26 µs of iiwa's 40 beside M⁻¹'s 17
+// (cuda/stage_latency.cu's team table, docs/gpu.md); RNEA and the product take 18 in all.
+// M⁻¹ is left in w.dense as in aba_derivatives.
 // extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
 template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {
-  return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(2ul * nv * nv + nv) + 16;
+  return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(2ul * nv * nv + 2ul * nv) + 16;
 }
 template <typename S, typename Team>
 RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, unsigned char* extra,
                                  const S* q, const S* qd, const S* tau, const S* fext, S gravity, S* qdd,
                                  S* dqdd_dq, S* dqdd_dqd) {
   const int nv = m.nv, n2 = nv * nv;
-  Workspace<S> wa = carve_workspace<S>(extra, m.nb, nv, kLinearWorkspace);
+  Workspace<S> wr = carve_workspace<S>(extra, m.nb, nv, kLinearWorkspace);
   S* dq = reinterpret_cast<S*>(extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));  // ∂ID/∂q
   S* dv = dq + n2;                                                                         // ∂ID/∂qd
-  if (!qdd) qdd = dv + n2;
+  S* r = dv + n2;                                                                          // tau - c
+  if (!qdd) qdd = r + nv;
   int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
   const S* Minv = w.dense;
-  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok + 1); },
-           [&] { ok[0] = aba(m, wa, q, qd, tau, fext, gravity, qdd); });
-  if (!ok[0] || !ok[1]) return false;  // (read after the barrier: the same on every thread)
-  rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
-  t.each(2 * n2, [&](long k) {
-    const S* D = k < n2 ? dq : dv;
-    const int r = static_cast<int>(k % n2) / nv, c = static_cast<int>(k % nv);
+  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok); },
+           [&] {
+             rnea(m, wr, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
+             for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
+           });
+  if (!*ok) return false;  // (read after the barrier: the same on every thread)
+  t.each(nv, [&](long row) {
     S acc = S(0);
-    for (int l = 0; l < nv; ++l) acc += Minv[r * nv + l] * D[l * nv + c];
-    (k < n2 ? dqdd_dq : dqdd_dqd)[r * nv + c] = -acc;
+    for (int c = 0; c < nv; ++c) acc += Minv[row * nv + c] * r[c];
+    qdd[row] = acc;
   });
+  rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
+  const S* D[2] = {dq, dv};
+  S* out[2] = {dqdd_dq, dqdd_dqd};
+  matmul_tiles(t, Team::threads, Minv, D, out, 2, nv, nv, nv, S(-1));
   return true;
 }
 
