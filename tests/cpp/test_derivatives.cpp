@@ -2,7 +2,8 @@
 // space, on every bundled robot and joint-type test model (fixed and
 // floating). Pinocchio equivalence is in tests/python; this suite also runs
 // under the sanitizers. Also: ∇FD's tree-sparse product against the dense one
-// (bit for bit), and the body-frame CRBA against the world-frame pass.
+// (bit for bit), the body-frame CRBA against the world-frame pass, and the team
+// forms (the tree by levels) against the serial passes (bit for bit).
 #include <gtest/gtest.h>
 
 #include "test_models.hpp"
@@ -25,6 +26,20 @@ using rbd_test::max_rel_err;
 using rbd_test::ModelCase;
 
 class Derivatives : public ::testing::TestWithParam<ModelCase> {};
+
+// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
+// indices one after another, the last first
+struct ReversedTeam {
+  static constexpr bool cooperative = true;
+  static constexpr int threads = 64;
+  template <typename F> void each(long n, F&& f) const {
+    for (long k = n - 1; k >= 0; --k) f(k);
+  }
+  template <typename F> void each2(long rows, long cols, F&& f) const {
+    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
+  }
+  template <typename F> void one(F&& f) const { f(); }
+};
 
 }  // namespace
 
@@ -173,6 +188,75 @@ TEST_P(Derivatives, BodyFrameCrbaEqualsWorldFrameCrba) {
 // (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
 // float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there the
 // double result is checked against M M⁻¹ = 1
+TEST_P(Derivatives, TeamPassesEqualTheSerialPasses) {
+  // the team forms, which walk the tree a depth level per phase where it branches (levels_split: a
+  // parent gathers its children's terms, the last child first), against the serial passes: RNEA's tau
+  // and forces, M⁻¹'s U and D⁻¹ and its columns, ∇ID's two matrices. The same sums in the same order,
+  // so equal bit for bit where the compiler fuses no multiply-add (the tests' default x86-64 build)
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  const ModelView<double> mv = m.view();
+  if (m.has_mimic()) {  // the team forms are for models without mimic joints: the view routes these away
+    EXPECT_EQ(mv.has_mimic, 1);
+    return;
+  }
+  const ReversedTeam team;
+  EXPECT_EQ(levels_split(team, mv), m.levels() < m.nb());
+  WorkspaceBuffer serial_buf(m), team_buf(m);
+  Workspace<double>&ws = serial_buf.get(), &wt = team_buf.get();
+  const int nv = m.nv, nb = m.nb();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(nv), q(m.nq), qd(nv), qdd(nv), fext(6 * nb);
+  for (auto& x : d) x = 2 * U(rng);
+  for (auto& x : qd) x = U(rng);
+  for (auto& x : qdd) x = U(rng);
+  for (auto& x : fext) x = U(rng);
+  integrate(mv, q0.data(), d.data(), q.data());
+#if defined(__FMA__)
+  const double tol = 1e-13;  // (a build with fused multiply-adds may fuse them differently in each form)
+#else
+  const double tol = 0;
+#endif
+  auto expect_same = [&](const double* a, const double* b, int n, const char* what) {
+    std::vector<double> x(a, a + n), y(b, b + n);
+    EXPECT_LE(max_rel_err(x, y), tol) << what;
+  };
+  // RNEA
+  std::vector<double> tau_s(nv), tau_t(nv);
+  rnea(mv, ws, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, tau_s.data());
+  rnea_team(team, mv, wt, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, tau_t.data());
+  expect_same(tau_t.data(), tau_s.data(), nv, "RNEA's tau");
+  for (int i = 0; i < nb; ++i) {
+    double ft[6], fs[6];
+    store(wt.f[i], ft), store(ws.f[i], fs);
+    expect_same(ft, fs, 6, "RNEA's forces");
+  }
+  // M⁻¹: the articulated inertias' U and D⁻¹, then the columns
+  std::vector<double> scratch(nv * nv), Ms(nv * nv, 0.0), Mt(nv * nv, 0.0);
+  ASSERT_TRUE(minv_backward_pass(mv, ws, q.data(), scratch.data()));
+  for (int c = 0; c < nv; ++c) minv_column(mv, ws, c, Ms.data());
+  int ok = 0;
+  minv_team(team, mv, wt, q.data(), false, Mt.data(), &ok);
+  ASSERT_EQ(ok, 1);
+  for (int i = 0; i < nb; ++i) {
+    const int n = m.bodies[i].nv;
+    expect_same(wt.Dinv + 36 * i, ws.Dinv + 36 * i, n * n, "M⁻¹'s D⁻¹");
+    if (i > 0 || m.bodies[i].type != kFree)  // (a free root's U is not formed)
+      for (int k = 0; k < n; ++k) {
+        double ut[6], us[6];
+        store(wt.U[6 * i + k], ut), store(ws.U[6 * i + k], us);
+        expect_same(ut, us, 6, "M⁻¹'s U");
+      }
+  }
+  for (int r = 0; r < nv; ++r) expect_same(Mt.data() + r * nv + r, Ms.data() + r * nv + r, nv - r, "M⁻¹'s rows");
+  // ∇ID
+  std::vector<double> dq_s(nv * nv), dv_s(nv * nv), dq_t(nv * nv), dv_t(nv * nv);
+  rnea_derivatives(mv, ws, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, dq_s.data(), dv_s.data());
+  rnea_derivatives_team(team, mv, wt, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, dq_t.data(), dv_t.data());
+  expect_same(dq_t.data(), dq_s.data(), nv * nv, "∂ID/∂q");
+  expect_same(dv_t.data(), dv_s.data(), nv * nv, "∂ID/∂qd");
+}
+
 TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
   WorkspaceBuffer buf(m);
