@@ -14,7 +14,8 @@
 // The second table times the phases of the team kernels (src/cuda/team_kernels.cuh)
 // the same way: one block of kTeam threads, one sample, its first thread reading
 // the clock after each phase's last barrier. It says which serial phase decides a
-// team's time (∇FD's first phase is M⁻¹'s team beside ABA on one thread).
+// team's time (∇FD's first phase is M⁻¹'s team on a warp beside RNEA on one thread;
+// before, ABA there).
 #include <cuda_runtime.h>
 
 #include <cstdio>
@@ -83,12 +84,13 @@ __global__ void stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S 
 }
 
 // the team kernels' phases, in the order ∇FD runs them, then ID's and FD's first phase
-constexpr int kTeamStages = 9;
+constexpr int kTeamStages = 11;
 const char* const kTeamStageNames[kTeamStages] = {
-    "M⁻¹ (minv_team on a warp)", "ABA (one thread)", "∇FD phase 1: M⁻¹ on a warp beside ABA",
-    "FD phase 1: M⁻¹ on a warp beside RNEA", "∇FD phase 2: ∇ID (rnea_derivatives_team)",
-    "∇FD phase 3: -M⁻¹ ∂ID (two nv x nv)", "∇FD (aba_derivatives_team, whole)", "ID (rnea_team)",
-    "M⁻¹ (minv_team on the block)"};
+    "M⁻¹ (minv_team on a warp)", "ABA (one thread)", "M⁻¹ on a warp beside ABA (∇FD's phase 1 before)",
+    "∇FD and FD phase 1: M⁻¹ on a warp beside RNEA", "∇FD phase 2: ∇ID (rnea_derivatives_team)",
+    "-M⁻¹ ∂ID, an entry per index (before)", "∇FD (aba_derivatives_team, whole)", "ID (rnea_team)",
+    "M⁻¹ (minv_team on the block)", "∇FD phase 3: -M⁻¹ ∂ID in tiles (matmul_tiles)",
+    "qdd = M⁻¹ (u - c), a row per index"};
 
 template <typename S>
 __global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
@@ -97,7 +99,7 @@ __global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* ta
   unsigned char* slice = ws_in_shared ? shared_ws : global_ws;
   Workspace<S> w = carve_workspace<S>(slice, m.nb, m.nv);
   cuda::BlockTeam t;
-  t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: ABA's linear workspace, ∂ID, qdd, flags
+  t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: RNEA's linear workspace, ∂ID, u - c, qdd, flag
   const int nv = m.nv, n2 = nv * nv;
   Workspace<S> wa = carve_workspace<S>(t.extra, m.nb, nv, kLinearWorkspace);
   S* dq = reinterpret_cast<S*>(t.extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));
@@ -142,6 +144,19 @@ __global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* ta
           break;
         case 7: rnea_team(t, m, w, q, qd, qd, static_cast<const S*>(nullptr), gravity, out); break;
         case 8: minv_team(t, m, w, q, true, w.dense, ok + 1); break;
+        case 9: {
+          const S* D[2] = {dq, dv};
+          S* C[2] = {D1, D2};
+          matmul_tiles(t, cuda::kTeam, w.dense, D, C, 2, nv, nv, nv, S(-1));
+          break;
+        }
+        case 10:
+          t.each(nv, [&](long row) {
+            S acc = S(0);
+            for (int c = 0; c < nv; ++c) acc += w.dense[row * nv + c] * out[c];
+            qdd[row] = acc;
+          });
+          break;
         default: break;
       }
       __syncthreads();
