@@ -120,7 +120,7 @@ template <typename S> double run(const Model& model, int B) {
   for (int k = 0; k < kOutputs; ++k) CHECK_CUDA(cudaMalloc(&d_out[k], sizes[k] * B * sizeof(S)));
   Outputs<S> out{d_out[0], d_out[1], d_out[2], d_out[3], d_out[4], d_out[5],
                  d_out[6], d_out[7], d_out[8], d_out[9], d_out[10], d_out[11]};
-  ModelView<S> mv{nb, nq, nv, model.general_path() ? 1 : 0, d_bodies, model.levels()};
+  ModelView<S> mv{nb, nq, nv, model.general_path() ? 1 : 0, d_bodies};
   all_algorithms<S><<<(B + 63) / 64, 64>>>(mv, B, d_q, d_qd, d_tau, S(-9.81), d_scratch, ws_bytes, out);
   CHECK_CUDA(cudaGetLastError());
   CHECK_CUDA(cudaDeviceSynchronize());

@@ -196,7 +196,7 @@ template <typename S> void run(const Model& model, const char* label, int reps) 
   CHECK_CUDA(cudaDeviceGetAttribute(&shared_max, cudaDevAttrMaxSharedMemoryPerBlockOptin, 0));
   CHECK_CUDA(cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0));
   CHECK_CUDA(cudaFuncSetAttribute(stages<S>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
-  const ModelView<S> mv{nb, nq, nv, model.general_path() ? 1 : 0, d_bodies, model.levels()};
+  const ModelView<S> mv{nb, nq, nv, model.general_path() ? 1 : 0, d_bodies};
   std::printf("\n%s, %s, workspace %lu bytes (one thread)\n", label, sizeof(S) == 8 ? "float64" : "float32", ws_bytes);
   std::printf("| stage | shared: cycles | µs | global: cycles | µs |\n|---|---:|---:|---:|---:|\n");
   long long cyc[2][kStages];

@@ -8,9 +8,9 @@
 # GPU's name, in docs/gpu.md.
 #   scripts/gpu-check.sh [--quick] [bench/gpu.py's options...]   --quick: the benchmark's short form
 # GPU_CHECK_PREBUILT=1: the build was made elsewhere by scripts/gpu-prebuild.sh (whose outputs come
-# here as .gpu/carry.tar.xz, unpacked first): the build step is skipped, and the Python step installs its wheel instead of
-# compiling (a Python extension compiled here against a library compiled there mixes two
-# compilers in one shared object: docs/gpu.md, 2026-11-26).
+# here as .gpu/carry.tar.xz, unpacked first): the build step is skipped, and the Python step
+# installs its wheel instead of compiling (a Python extension compiled here against a library
+# compiled there mixes two compilers in one shared object: docs/gpu.md, 2026-11-26).
 # SANITIZER_TIMEOUT: seconds per compute-sanitizer run (default 300).
 # Exit status: non-zero when a test or a sanitizer check fails.
 set -uo pipefail
@@ -35,8 +35,9 @@ gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
 # ---- build: the library with the real kernels, the C++ tests
 prebuilt=${GPU_CHECK_PREBUILT:-0}
 if [[ "$prebuilt" == 1 ]]; then
-  # scripts/gpu-prebuild.sh's outputs, carried here as one file
-  [[ -f .gpu/carry.tar.xz && ! -f build/gpu/CMakeCache.txt ]] && tar xJf .gpu/carry.tar.xz
+  # scripts/gpu-prebuild.sh's outputs, carried here as one file: unpacked on every run (a warm
+  # machine keeps the last run's build/gpu, which a newer carry must replace)
+  [[ -f .gpu/carry.tar.xz ]] && tar xJf .gpu/carry.tar.xz
   [[ -f build/gpu/CMakeCache.txt ]] || {
     echo "gpu-check: GPU_CHECK_PREBUILT=1 but build/gpu/CMakeCache.txt is missing: copy scripts/gpu-prebuild.sh's outputs here" >&2
     exit 2

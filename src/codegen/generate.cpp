@@ -158,7 +158,7 @@ std::string generate_header(const Model& model, const std::string& name, const s
       << "            {" << mat3(d.X_tree.R) << ", " << vec3(d.X_tree.p) << "},\n"
       << "            "
       << (runtime_inertias ? runtime_inertia(i) : "{" + lit(d.I.m) + ", " + vec3(d.I.h) + ", " + mat3(d.I.I) + "}")
-      << ", " << d.depth << "};\n";
+      << "};\n";
   }
   // with runtime inertias, pi (10·nb) is every entry point's first parameter and each call's Call reads it
   const std::string P = runtime_inertias ? "const S* pi, " : "";

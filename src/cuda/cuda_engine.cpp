@@ -198,7 +198,7 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   const Model& m = model;
   const long B = c.B;
   cuda::DeviceCall<T> dc{};
-  dc.model = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p), m.levels()};
+  dc.model = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
   dc.layout = ops::workspace_layout(op, m);
   dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
   const bool team = uses_team(op_id, B, call_convention(op, c));

@@ -177,7 +177,7 @@ RBD_HD void op_samples(const DeviceCall<T>& c, const ModelView<T>& m, long first
 template <typename Op, typename T>
 __global__ void op_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
   extern __shared__ __align__(16) unsigned char shared_work[];
-  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies, c.model.levels};
+  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
   op_samples<Op>(c, m, static_cast<long>(blockIdx.x) * blockDim.x + threadIdx.x,
                  static_cast<long>(gridDim.x) * blockDim.x, shared_work + threadIdx.x * c.work_bytes);
 }

@@ -310,7 +310,7 @@ RBD_HD void team_sample(Team t, const DeviceCall<T>& c, const ModelView<T>& m, l
 template <typename Op, typename T>
 __global__ void __launch_bounds__(kTeam) team_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
   extern __shared__ __align__(16) unsigned char shared_work[];
-  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies, c.model.levels};
+  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
   if constexpr (TeamOp<Op>::available) {
     const BlockTeam t;
     for (long s = blockIdx.x; s < c.B; s += gridDim.x)

@@ -29,18 +29,10 @@ void Model::finalize() {
     for (int k = 0; k < 3; ++k)
       if (std::abs(a[k]) == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) b.axis_k = k + 1;
   }
-  // each body's depth (parents come before children)
-  for (auto& b : bodies) b.depth = b.parent < 0 ? 0 : bodies[b.parent].depth + 1;
   // velocity coordinates in each subtree (children come after parents)
   for (auto& b : bodies) b.nv_subtree = b.mimic ? 0 : b.nv;
   for (int i = nb() - 1; i >= 0; --i)
     if (bodies[i].parent >= 0) bodies[bodies[i].parent].nv_subtree += bodies[i].nv_subtree;
-}
-
-int Model::levels() const {
-  int deepest = -1;
-  for (const auto& b : bodies) deepest = b.depth > deepest ? b.depth : deepest;
-  return deepest + 1;
 }
 
 std::vector<std::string> Model::joint_names() const {

@@ -3,7 +3,7 @@
 // floating). Pinocchio equivalence is in tests/python; this suite also runs
 // under the sanitizers. Also: ∇FD's tree-sparse product against the dense one
 // (bit for bit), the body-frame CRBA against the world-frame pass, and the team
-// forms (the tree by levels) against the serial passes (bit for bit).
+// forms against the serial passes (bit for bit).
 #include <gtest/gtest.h>
 
 #include "test_models.hpp"
@@ -182,17 +182,11 @@ TEST_P(Derivatives, BodyFrameCrbaEqualsWorldFrameCrba) {
   }
 }
 
-// M⁻¹'s serial passes (F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
-// 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path the team
-// kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and in float
-// (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
-// float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there the
-// double result is checked against M M⁻¹ = 1
 TEST_P(Derivatives, TeamPassesEqualTheSerialPasses) {
-  // the team forms, which walk the tree a depth level per phase where it branches (levels_split: a
-  // parent gathers its children's terms, the last child first), against the serial passes: RNEA's tau
-  // and forces, M⁻¹'s U and D⁻¹ and its columns, ∇ID's two matrices. The same sums in the same order,
-  // so equal bit for bit where the compiler fuses no multiply-add (the tests' default x86-64 build)
+  // the team forms (phases of side-by-side indices, run here the last index first, as interpret mode
+  // runs them) against the serial passes: RNEA's tau and forces, M⁻¹'s U and D⁻¹ and its columns,
+  // ∇ID's two matrices. The same sums in the same order, so equal bit for bit where the compiler fuses
+  // no multiply-add (the tests' default x86-64 build)
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
   const ModelView<double> mv = m.view();
   if (m.has_mimic()) {  // the team forms are for models without mimic joints: the view routes these away
@@ -200,7 +194,6 @@ TEST_P(Derivatives, TeamPassesEqualTheSerialPasses) {
     return;
   }
   const ReversedTeam team;
-  EXPECT_EQ(levels_split(team, mv), m.levels() < m.nb());
   WorkspaceBuffer serial_buf(m), team_buf(m);
   Workspace<double>&ws = serial_buf.get(), &wt = team_buf.get();
   const int nv = m.nv, nb = m.nb();
@@ -257,6 +250,12 @@ TEST_P(Derivatives, TeamPassesEqualTheSerialPasses) {
   expect_same(dv_t.data(), dv_s.data(), nv * nv, "∂ID/∂qd");
 }
 
+// M⁻¹'s serial passes (F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
+// 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path the team
+// kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and in float
+// (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
+// float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there the
+// double result is checked against M M⁻¹ = 1
 TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
   WorkspaceBuffer buf(m);

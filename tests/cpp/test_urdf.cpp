@@ -4,7 +4,6 @@
 // names that never collide; chains of any depth.
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -72,27 +71,6 @@ TEST(Urdf, DepthFirstInDocumentOrder) {
   EXPECT_EQ(m.joint_names()[0], "zz");
   EXPECT_EQ(m.joint_names()[1], "mm");
   EXPECT_EQ(m.joint_names()[2], "aa");
-}
-
-TEST(Urdf, DepthsAndLevels) {
-  // each body's depth is its parent's + 1 (0 for a root), and levels() the deepest + 1, in the view
-  // too: counted here by walking each body's parents to the world
-  auto check = [](const Model& m, int levels) {
-    int deepest = -1;
-    for (int i = 0; i < m.nb(); ++i) {
-      int steps = 0;
-      for (int j = m.bodies[i].parent; j >= 0; j = m.bodies[j].parent) ++steps;
-      EXPECT_EQ(m.bodies[i].depth, steps) << "body " << i;
-      deepest = std::max(deepest, steps);
-    }
-    EXPECT_EQ(m.levels(), deepest + 1);
-    EXPECT_EQ(m.levels(), levels);
-    EXPECT_EQ(m.view().levels, levels);
-    EXPECT_EQ(m.bodies_as<float>()[m.nb() - 1].depth, m.bodies[m.nb() - 1].depth);
-  };
-  check(Model::from_urdf_file(kRobots + "/iiwa.urdf"), 7);          // a chain: as many levels as bodies
-  check(Model::from_urdf_file(kRobots + "/hyq.urdf", true), 4);     // the trunk, then 4 legs of 3
-  check(Model::from_urdf_file(kRobots + "/atlas.urdf", true), 11);  // 31 bodies
 }
 
 TEST(Urdf, FixedJointsMergeInertiaAndKeepFrames) {

@@ -108,14 +108,6 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
   for (int i = nb - 1; i >= 0; --i)
     if (m.bodies[i].parent >= 0) subtree[m.bodies[i].parent] += subtree[i];
   for (int i = 0; i < nb; ++i) RBD_FUZZ_CHECK(m.bodies[i].nv_subtree == subtree[i]);
-  // depths: one more than the parent's, and the levels one more than the deepest
-  int deepest = -1;
-  for (int i = 0; i < nb; ++i) {
-    const int p = m.bodies[i].parent;
-    RBD_FUZZ_CHECK(m.bodies[i].depth == (p < 0 ? 0 : m.bodies[p].depth + 1));
-    deepest = std::max(deepest, m.bodies[i].depth);
-  }
-  RBD_FUZZ_CHECK(m.levels() == deepest + 1 && m.view().levels == m.levels());
   for (int k = 0; k < m.nq; ++k) RBD_FUZZ_CHECK(!std::isnan(m.lower[k]) && !std::isnan(m.upper[k]));
   for (int k = 0; k < m.nv; ++k) RBD_FUZZ_CHECK(m.velocity_limit[k] > 0 && m.effort_limit[k] > 0);
   for (const FrameInfo& f : m.frames) {

@@ -121,8 +121,8 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 //   - the derivative passes on M⁻¹'s placements (rnea_derivatives_team);
 //   - the two products -M⁻¹ ∂ID in tiles (matmul_tiles; each entry's sum in aba_derivatives's order).
 // qdd is M⁻¹ (tau - c), not ABA's: the two agree to rounding, not bit for bit, so a team's step gradient
-// gives x⁺ to the last bits of the step's. ABA on one thread took 26 µs of iiwa's 40 beside M⁻¹'s 17
-// (cuda/stage_latency.cu's team table, docs/gpu.md); RNEA and the product take 18 in all.
+// gives x⁺ to the last bits of the step's. On an H200, ABA on one thread took 26 µs of iiwa's 40 beside
+// M⁻¹'s 17; M⁻¹ beside RNEA, then qdd's rows, take 19 (cuda/stage_latency.cu's team table, docs/gpu.md).
 // M⁻¹ is left in w.dense as in aba_derivatives.
 // extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
 template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {

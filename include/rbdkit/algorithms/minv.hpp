@@ -331,9 +331,7 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
 // body inertias side by side (world_placements_team), the articulated inertias U, D⁻¹ (the only chain:
-// IA_λ += IA - U D⁻¹ Uᵀ, children first) level by level where levels_split (each body gathers its
-// children's residuals, the last child first, as the serial pass adds them) or on one thread, then
-// every column side by side (minv_column),
+// IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every column side by side (minv_column),
 // then the lower triangle (mirrored when dense, else zero). The same values as minv. ok: where the
 // team writes whether every D was positive definite (read it after the team's next barrier). An
 // InlineTeam runs minv
@@ -347,29 +345,17 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
     world_placements_team(t, m, w, q, true, [&](int i) {
       w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
       w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
-      if (i == 0) *ok = 1;  // (a failed D below clears it)
     });
-    auto joint_inertia = [&](int i) {  // U, D⁻¹ of joint i; false (and the flag cleared) if D is not PD
-      if (minv_joint_inertia(m.body[i], w.X_world[i], w.S_world + 6 * i, w.IA[i], w.U + 6 * i, w.Dinv + 36 * i))
-        return true;
-      *ok = 0;
-      return false;
-    };
-    auto add_residual = [&](int j, int i) {  // child j's IA - U D⁻¹ Uᵀ into IA_i
-      add_articulated_residual(m.body[j].nv, w.IA[j], w.U + 6 * j, w.Dinv + 36 * j, w.IA[i]);
-    };
-    if (levels_split(t, m)) {
-      each_level_up(t, m, [&](int i) {
-        each_child_last_first(m, i, [&](int j) { add_residual(j, i); });
-        joint_inertia(i);
-      });
-    } else {
-      t.one([&] {
-        for (int i = m.nb - 1; i >= 0; --i) {
-          if (joint_inertia(i) && m.body[i].parent >= 0) add_residual(i, m.body[i].parent);
-        }
-      });
-    }
+    t.one([&] {
+      *ok = 1;
+      for (int i = m.nb - 1; i >= 0; --i) {
+        const BodyDesc<S>& b = m.body[i];
+        Force<S>* U = w.U + 6 * i;
+        S* Dinv = w.Dinv + 36 * i;
+        if (!minv_joint_inertia(b, w.X_world[i], w.S_world + 6 * i, w.IA[i], U, Dinv)) *ok = 0;
+        else if (b.parent >= 0) add_articulated_residual(b.nv, w.IA[i], U, Dinv, w.IA[b.parent]);
+      }
+    });
     t.each(nv, [&](long c) { minv_column(m, w, static_cast<int>(c), Minv); });
     t.each2(nv, nv, [&](long r, long c) {
       if (r > c) Minv[r * nv + c] = dense ? Minv[c * nv + r] : S(0);

@@ -71,10 +71,8 @@ RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd
 }
 
 // rnea on a team of threads (model/team.hpp): the joint transforms side by side, the velocity and
-// acceleration chain, the net forces side by side, the backward pass. The two chains go level by level
-// where levels_split (in the backward pass each body gathers its children's forces, the last child
-// first, as the serial pass adds them), else on one thread. The same values as rnea (a model without
-// mimic joints: a joint's tau entries are its own body's). An InlineTeam runs rnea
+// acceleration chain on one thread, the net forces side by side, the backward pass on one thread. The
+// same values as rnea. An InlineTeam runs rnea
 template <typename S, typename Team>
 RBD_HD void rnea_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                       const S* fext, S gravity, S* tau) {
@@ -82,25 +80,11 @@ RBD_HD void rnea_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
     rnea(m, w, q, qd, qdd, fext, gravity, tau);
   } else {
     t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
-    if (levels_split(t, m)) {
-      each_level_down(t, m, [&](int i) { rnea_body_motion(m, w, i, qd, qdd, gravity); });
-    } else {
-      t.one([&] {
-        for (int i = 0; i < m.nb; ++i) rnea_body_motion(m, w, i, qd, qdd, gravity);
-      });
-    }
+    t.one([&] {
+      for (int i = 0; i < m.nb; ++i) rnea_body_motion(m, w, i, qd, qdd, gravity);
+    });
     t.each(m.nb, [&](long i) { rnea_body_force(m, w, static_cast<int>(i), fext); });
-    if (levels_split(t, m)) {
-      each_level_up(t, m, [&](int i) {
-        each_child_last_first(m, i, [&](int j) { w.f[i] += w.X_parent[j].act(w.f[j]); });
-        const BodyDesc<S>& b = m.body[i];
-        S tb[6];
-        joint_project(b, w.f[i], tb);
-        for (int k = 0; k < b.nv; ++k) tau[b.v_idx + k] = S(0) + tb[k];  // (as the serial pass's sum from 0)
-      });
-    } else {
-      t.one([&] { rnea_backward_pass(m, w, tau); });
-    }
+    t.one([&] { rnea_backward_pass(m, w, tau); });
   }
 }
 

@@ -55,9 +55,9 @@ RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w
 }
 
 // rnea_derivatives_forward_pass on a team (model/team.hpp): the placements (world_placements_team,
-// unless placed) and each joint's own motion side by side, the velocity and acceleration chain (a few
-// additions and a cross product per body) level by level where levels_split, else on one thread, then
-// each body's sensitivities and inertia terms side by side. The same values, each in the same order
+// unless placed) and each joint's own motion side by side, the velocity and acceleration chain on one
+// thread (a few additions and a cross product per body), then each body's sensitivities and inertia
+// terms side by side. The same values, each in the same order
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
                                           const S* qd, const S* qdd, const S* fext, S gravity, bool placed) {
@@ -71,20 +71,15 @@ RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, 
       own_motion(i);
     });
   }
-  auto chain = [&](int i) {  // v_i = v_λ + vJ, a_i = a_λ + aJ + v_i × vJ, parents first
-    Motion<S> vp, ap;
-    parent_motion(m, w, i, gravity, true, vp, ap);
-    const Motion<S> vJ = w.v[i];
-    w.v[i] = vp + vJ;
-    w.a[i] = ap + w.a[i] + cross(w.v[i], vJ);
-  };
-  if (levels_split(t, m)) {
-    each_level_down(t, m, chain);
-  } else {
-    t.one([&] {
-      for (int i = 0; i < m.nb; ++i) chain(i);
-    });
-  }
+  t.one([&] {  // v_i = v_λ + vJ, a_i = a_λ + aJ + v_i × vJ, parents first
+    for (int i = 0; i < m.nb; ++i) {
+      Motion<S> vp, ap;
+      parent_motion(m, w, i, gravity, true, vp, ap);
+      const Motion<S> vJ = w.v[i];
+      w.v[i] = vp + vJ;
+      w.a[i] = ap + w.a[i] + cross(w.v[i], vJ);
+    }
+  });
   t.each(m.nb, [&](long i_) {
     const int i = static_cast<int>(i_);
     Motion<S> vp, ap;
@@ -184,9 +179,8 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
 
 // rnea_derivatives on a team of threads (model/team.hpp; the GPU's team kernels), for a model without
 // mimic joints: the forward pass split (rnea_derivatives_forward_team), the four composite sums side
-// by side (and level by level where levels_split: each body gathers its children's, the last child
-// first, as the serial pass adds them), then each body's entries side by side (bodies own disjoint
-// entries there). The same results; tau is not computed. An InlineTeam runs the serial passes
+// by side, then each body's entries side by side (bodies own disjoint entries there). The same
+// results; tau is not computed. An InlineTeam runs the serial passes
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                   const S* qdd, const S* fext, S gravity, S* dtau_dq, S* dtau_dqd,
@@ -197,24 +191,16 @@ RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspac
     rnea_derivatives_composites(m, w);
   } else {
     rnea_derivatives_forward_team(t, m, w, q, qd, qdd, fext, gravity, placed);
-    auto add = [&](int part, int j, int p) {  // part of child j's sums into its parent p's
-      if (part == 0) w.Ic[p] += w.Ic[j];
-      else if (part == 1) w.h[p] += w.h[j];
-      else if (part == 2) w.f[p] += w.f[j];
-      else w.B[p] += w.B[j];
-    };
-    if (levels_split(t, m)) {
-      for (int level = m.levels - 2; level >= 0; --level)  // (the deepest level has no children)
-        t.each(4l * m.nb, [&](long k) {
-          const int part = static_cast<int>(k / m.nb), i = static_cast<int>(k % m.nb);
-          if (m.body[i].depth == level) each_child_last_first(m, i, [&](int j) { add(part, j, i); });
-        });
-    } else {
-      t.each(4, [&](long part) {  // the composites, each of the four sums on its own thread
-        for (int i = m.nb - 1; i >= 0; --i)
-          if (m.body[i].parent >= 0) add(static_cast<int>(part), i, m.body[i].parent);
-      });
-    }
+    t.each(4, [&](long part) {  // the composites, each of the four sums on its own thread
+      for (int i = m.nb - 1; i >= 0; --i) {
+        const int p = m.body[i].parent;
+        if (p < 0) continue;
+        if (part == 0) w.Ic[p] += w.Ic[i];
+        else if (part == 1) w.h[p] += w.h[i];
+        else if (part == 2) w.f[p] += w.f[i];
+        else w.B[p] += w.B[i];
+      }
+    });
   }
   t.each(m.nb, [&](long i) {
     rnea_derivatives_body(m, w, static_cast<int>(i), dtau_dq, dtau_dqd, static_cast<S*>(nullptr));

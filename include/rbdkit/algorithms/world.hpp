@@ -77,23 +77,18 @@ RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S*
 }
 
 // world_placement of every body on a team (model/team.hpp): the joint transforms X_λi side by side,
-// the chain X_0i = X_0λ X_λi level by level (levels_split) or on one thread, then each body's subspace
-// columns (with_subspace) and then_each(i) side by side. The same values as world_placement body by body
+// the chain X_0i = X_0λ X_λi on one thread, then each body's subspace columns (with_subspace) and
+// then_each(i) side by side. The same values as world_placement body by body
 template <typename S, typename Team, typename F>
 RBD_HD void world_placements_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
                                   bool with_subspace, F&& then_each) {
   t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
-  auto place = [&](int i) {
-    const int p = m.body[i].parent;
-    w.X_world[i] = p >= 0 ? w.X_world[p] * w.X_parent[i] : w.X_parent[i];
-  };
-  if (levels_split(t, m)) {
-    each_level_down(t, m, place);
-  } else {
-    t.one([&] {
-      for (int i = 0; i < m.nb; ++i) place(i);
-    });
-  }
+  t.one([&] {
+    for (int i = 0; i < m.nb; ++i) {
+      const int p = m.body[i].parent;
+      w.X_world[i] = p >= 0 ? w.X_world[p] * w.X_parent[i] : w.X_parent[i];
+    }
+  });
   t.each(m.nb, [&](long i) {
     const BodyDesc<S>& b = m.body[i];
     if (with_subspace)

@@ -36,13 +36,12 @@ template <typename S> struct BodyDesc {
                       // Derived from axis by Model::finalize: set it again after changing axis
   Transform<S> X_tree;  // X_parent_joint: joint frame placed in the parent body frame
   Inertia<S> I;       // spatial inertia in the body frame (merged fixed links included)
-  int depth;          // bodies between this one and the world: 0 for a root. Derived by Model::finalize
 };
 
 // a body description in scalar T (a dual number, float): the constants converted, the structure kept
 template <typename T, typename S> RBD_HD void body_as(const BodyDesc<S>& b, BodyDesc<T>& o) {
   o.parent = b.parent, o.type = b.type, o.q_idx = b.q_idx, o.v_idx = b.v_idx, o.nq = b.nq, o.nv = b.nv;
-  o.nv_subtree = b.nv_subtree, o.mimic = b.mimic, o.axis_k = b.axis_k, o.depth = b.depth;
+  o.nv_subtree = b.nv_subtree, o.mimic = b.mimic, o.axis_k = b.axis_k;
   o.mult = T(b.mult), o.offset = T(b.offset), o.pitch = T(b.pitch);
   o.axis = {T(b.axis.x), T(b.axis.y), T(b.axis.z)};
   for (int k = 0; k < 9; ++k) o.X_tree.R.m[k] = T(b.X_tree.R.m[k]), o.I.I.m[k] = T(b.I.I.m[k]);
@@ -58,8 +57,6 @@ template <typename S> struct ModelView {
                             // (Model::general_path): the algorithms then take their general paths
                             // (world-frame CRBA, M⁻¹ and forward dynamics through M's Cholesky factor)
   const BodyDesc<S>* body;  // (nb)
-  int levels = 0;           // depth levels, the deepest body's depth + 1 (Model::levels); 0 where not given:
-                            // a team then walks the tree's chains on one thread (model/team.hpp)
 };
 
 // whether each body's subtree owns the velocity coordinates [v_idx, v_idx + nv_subtree), one

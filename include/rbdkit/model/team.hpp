@@ -37,38 +37,6 @@ struct InlineTeam {
   template <typename F, typename G> RBD_HD void beside(F&& f, G&& g) const { f(*this), g(); }
 };
 
-// ---- the tree level by level: the bodies at one depth (BodyDesc::depth) side by side, a level per
-// phase. A chain through the tree (a body's pose from its parent's, a parent's articulated inertia
-// from its children's) takes as many phases as the tree has levels, not bodies: floating Atlas's 31
-// bodies are 11 levels, floating HyQ's 13 are 4.
-// levels_split: whether a team walks a model so. Not on one thread (InlineTeam), not where the levels
-// are not given (ModelView::levels 0), and not on a chain such as iiwa, whose levels are its bodies:
-// there one thread's loop saves the barriers.
-template <typename Team, typename Model> RBD_HD bool levels_split(const Team&, const Model& m) {
-  return Team::cooperative && m.levels > 0 && m.levels < m.nb;
-}
-// f(i) for every body, the root's level first: a body's parent is done before it
-template <typename Team, typename Model, typename F> RBD_HD void each_level_down(const Team& t, const Model& m, F&& f) {
-  for (int level = 0; level < m.levels; ++level)
-    t.each(m.nb, [&](long i) {
-      if (m.body[i].depth == level) f(static_cast<int>(i));
-    });
-}
-// f(i) for every body, the deepest level first: a body's children are done before it
-template <typename Team, typename Model, typename F> RBD_HD void each_level_up(const Team& t, const Model& m, F&& f) {
-  for (int level = m.levels - 1; level >= 0; --level)
-    t.each(m.nb, [&](long i) {
-      if (m.body[i].depth == level) f(static_cast<int>(i));
-    });
-}
-// g(j) for every child j of body i, the last first: the order in which a serial pass over the bodies,
-// the last first, adds each child into its parent (so a parent that gathers its children's terms sums
-// them in that pass's order). Bodies come after their parents (BodyDesc)
-template <typename Model, typename G> RBD_HD void each_child_last_first(const Model& m, int i, G&& g) {
-  for (int j = m.nb - 1; j > i; --j)
-    if (m.body[j].parent == i) g(j);
-}
-
 // C (r x c) = A (r x n) B (n x c), row-major, C aliasing neither: one
 // thread's row-by-row accumulation, or tiles of entries on a cooperative team
 // (matmul_tile). Each entry sums over n in the same order either way
@@ -108,10 +76,10 @@ RBD_HD void matmul_tile(const S* A, int lda, const S* B, int ldb, S* C, int ldc,
     for (int b = 0; b < R && j0 + b < c; ++b) C[(i0 + a) * ldc + j0 + b] = sign * acc[a][b];
 }
 
-// the tile side for an r x c product on a team of `threads`: 4 where that still gives every thread a
-// tile, else 2 (iiwa's 7 x 7: 16 tiles of 2 x 2 rather than 4 of 4 x 4)
-RBD_HD int team_tile_side(int r, int c, int threads) {
-  return ((r + 3) / 4) * ((c + 3) / 4) >= threads ? 4 : 2;
+// the tile side for `count` r x c products on a team of `threads`: 4 where that still gives every
+// thread a tile, else 2 (iiwa's two 7 x 7: 32 tiles of 2 x 2 rather than 8 of 4 x 4)
+RBD_HD int team_tile_side(int r, int c, int count, int threads) {
+  return ((r + 3) / 4) * ((c + 3) / 4) * count >= threads ? 4 : 2;
 }
 
 // the tiles of `count` products C_p = sign · A B_p (A: r x n, each B_p: n x c, each C_p: r x c, row-major,
@@ -119,7 +87,7 @@ RBD_HD int team_tile_side(int r, int c, int threads) {
 template <typename Team, typename S>
 RBD_HD void matmul_tiles(const Team& t, int threads, const S* A, const S* const* B, S* const* C, int count, int r,
                          int n, int c, S sign) {
-  const int side = team_tile_side(r, c * count, threads);
+  const int side = team_tile_side(r, c, count, threads);
   const int tr = (r + side - 1) / side, tc = (c + side - 1) / side;
   t.each(static_cast<long>(count) * tr * tc, [&](long e) {
     const int p = static_cast<int>(e / (tr * tc)), k = static_cast<int>(e % (tr * tc));

@@ -64,9 +64,7 @@ class Model {
   // the algorithms' general paths (the view's has_mimic flag): mimic joints, or bodies not in
   // depth-first order (a ModelBuilder's added otherwise: subtrees_contiguous)
   bool general_path() const;
-  ModelView<double> view() const { return {nb(), nq, nv, general_path() ? 1 : 0, bodies.data(), levels()}; }
-  // depth levels of the tree: the deepest body's BodyDesc::depth + 1 (ModelView::levels)
-  int levels() const;
+  ModelView<double> view() const { return {nb(), nq, nv, general_path() ? 1 : 0, bodies.data()}; }
   // the bodies in another scalar type (float, dual numbers), constants converted;
   // view them with ModelView<S>{nb(), nq, nv, general_path(), converted.data()}
   template <typename S> std::vector<BodyDesc<S>> bodies_as() const;

@@ -129,7 +129,7 @@ template <typename T> struct EngineT : Engine::Impl {
 
   EngineT(const Model& m, int t, const std::string& d)
       : Engine::Impl(m, t, d, W), bodies(m.bodies_as<P>()), buffers(t), ranges(new HomeRange[t]), pool(t) {
-    mv = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, bodies.data(), m.levels()};
+    mv = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, bodies.data()};
   }
   unsigned long workspace_bytes() const override {
     unsigned long n = 0;
