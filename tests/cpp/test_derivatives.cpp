@@ -24,22 +24,9 @@ namespace {
 using rbd_test::all_cases;
 using rbd_test::max_rel_err;
 using rbd_test::ModelCase;
+using rbd_test::ReversedTeam;
 
 class Derivatives : public ::testing::TestWithParam<ModelCase> {};
-
-// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
-// indices one after another, the last first
-struct ReversedTeam {
-  static constexpr bool cooperative = true;
-  static constexpr int threads = 64;
-  template <typename F> void each(long n, F&& f) const {
-    for (long k = n - 1; k >= 0; --k) f(k);
-  }
-  template <typename F> void each2(long rows, long cols, F&& f) const {
-    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
-  }
-  template <typename F> void one(F&& f) const { f(); }
-};
 
 }  // namespace
 

@@ -44,4 +44,18 @@ inline double max_rel_err(const std::vector<double>& a, const std::vector<double
   return e / s;
 }
 
+// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
+// indices one after another, the last first (model/team.hpp's team forms, without a GPU)
+struct ReversedTeam {
+  static constexpr bool cooperative = true;
+  static constexpr int threads = 64;
+  template <typename F> void each(long n, F&& f) const {
+    for (long k = n - 1; k >= 0; --k) f(k);
+  }
+  template <typename F> void each2(long rows, long cols, F&& f) const {
+    each(rows * cols, [&](long k) { f(k / cols, k % cols); });
+  }
+  template <typename F> void one(F&& f) const { f(); }
+};
+
 }  // namespace rbd_test

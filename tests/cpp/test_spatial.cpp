@@ -7,6 +7,8 @@
 #include <random>
 #include <vector>
 
+#include "test_models.hpp"
+
 #include "rbdkit/algorithms/aba.hpp"
 #include "rbdkit/algorithms/dense.hpp"
 #include "rbdkit/model/configuration.hpp"
@@ -15,6 +17,7 @@
 #include "rbdkit/spatial/spatial.hpp"
 
 using namespace rbd;
+using rbd_test::ReversedTeam;
 using V3 = Vec3<double>;
 using Mo = Motion<double>;
 using Fo = Force<double>;
@@ -149,16 +152,6 @@ TEST(Dense, NegMatmulEqualsThePlainLoopBitForBit) {
   check(0.0);
   check(0.0f);
 }
-
-// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
-// indices one after another, the last first
-struct ReversedTeam {
-  static constexpr bool cooperative = true;
-  static constexpr int threads = 64;
-  template <typename F> void each(long n, F&& f) const {
-    for (long k = n - 1; k >= 0; --k) f(k);
-  }
-};
 
 TEST(Dense, TeamMatmulTilesEqualThePlainProduct) {
   // matmul_tiles (2 x 2 and 4 x 4 tiles, edge tiles clamped) against the triple loop in double, in both
