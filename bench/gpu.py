@@ -19,13 +19,20 @@ sample) forced to the sample-per-thread kernel and to the team kernel
 (RBDKIT_CUDA_KERNEL; the default, "auto", picks by B per SM and by nv;
 docs/cuda.md, "Team kernels"); "-" for the others.
 
+With --specialize: one more resident column, a handle with specialize=True (the
+CUDA backend's kernels compiled by nvcc on the robot's constants for ID, M⁻¹,
+FD, ∇ID, ∇FD and the step gradient; docs/generated-code.md), and after the
+table, per robot and dtype, the compilation's seconds and the largest
+difference of its results from the generic kernels' (relative to each output's
+scale); "-" for the operations it does not hold.
+
 With --ilqr: one iLQR iteration's derivatives for K = 64 trajectories of
 N = 100 knot points of the demo's iiwa reach (B = 6400 in one call each:
 rk4 step gradients, state, input and end-effector costs), on the GPU
 (resident) against the CPU engine (issue 17, point 3).
 
     python3 bench/gpu.py [--quick] [--robots R,..] [--ops OP,..] [--batches B,..] [--work-memory]
-                         [--kernels] [--ilqr] [--out table.md]
+                         [--kernels] [--specialize] [--ilqr] [--out table.md]
 
 In interpret mode (RBDKIT_CUDA_INTERPRET=1, no GPU) the same runs, slowly:
 a smoke test of the script, not a measurement.
@@ -47,9 +54,11 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("∇ID", "inverse_dynamics_gradient"), ("∇FD", "forward_dynamics_gradient"),
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
-# the operations with a team kernel (src/cuda/team_kernels.cuh; --kernels)
+# the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
 TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
             "integrator_gradient")
+# the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops: the same six)
+INSTANCE_OPS = TEAM_OPS
 
 
 def device_module(choice="any"):
@@ -101,6 +110,16 @@ def per_call(f, args, kwargs, sync, budget):
         best, spent = min(best, dt / n), spent + dt
         n = min(n * 2, 64)
     return best
+
+
+def scaled_difference(a, b):
+    """the largest |a - b| over the outputs, each relative to its own scale (device arrays or NumPy)"""
+    pairs = zip(a, b) if isinstance(a, tuple) else [(a, b)]
+    worst = 0.0
+    for x, y in pairs:
+        x, y = (np.asarray(v.cpu() if hasattr(v, "cpu") else v, dtype=np.float64) for v in (x, y))
+        worst = max(worst, float(np.max(np.abs(x - y))) / max(1.0, float(np.max(np.abs(y)))))
+    return worst
 
 
 def nbytes(result):
@@ -172,6 +191,8 @@ def main():
                     help="the device arrays of the resident column")
     ap.add_argument("--kernels", action="store_true",
                     help="two more resident columns: the sample-per-thread and the team kernel, where an op has both")
+    ap.add_argument("--specialize", action="store_true",
+                    help="one more resident column: the robot's compiled CUDA instance (specialize=True)")
     ap.add_argument("--work-memory", action="store_true",
                     help="also time the resident call with the work in global and in shared memory")
     ap.add_argument("--ilqr", action="store_true",
@@ -203,7 +224,7 @@ def main():
     dev = device_module(a.arrays)
     warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias
     nosync = lambda: None  # noqa: E731
-    lines = []
+    lines, notes, worst = [], [], {}  # (--specialize: the instances' compile times, their largest differences)
 
     def out(s=""):
         print(s, flush=True)
@@ -220,13 +241,21 @@ def main():
                 forced[where] = cuda_handle(model, dtype, "RBDKIT_CUDA_WORK", where)
             for kernel in ("sample", "team") if a.kernels and dev else ():
                 forced[kernel] = cuda_handle(model, dtype, "RBDKIT_CUDA_KERNEL", kernel)
+            if a.specialize and dev:
+                t0 = time.perf_counter()
+                spec = rbdkit.Handle(model, backend="cuda", dtype=dtype, specialize=True)
+                notes.append(f"{robot}{'_floating' if floating else ''} {dtype}: the instance in "
+                             f"{time.perf_counter() - t0:.1f} s ({'in use' if spec.specialized else 'NOT in use'})")
+                if spec.specialized:
+                    forced["specialized"] = spec
             if gpu is None:
                 gpu = cu.device
                 out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
                     f"(CPU engine: {cpu.threads} threads; device arrays: {dev[0] if dev else 'none'})")
                 out()
                 extra = [c for c, on in (("global", a.work_memory), ("shared", a.work_memory),
-                                         ("sample kernel", a.kernels), ("team kernel", a.kernels)) if on]
+                                         ("sample kernel", a.kernels), ("team kernel", a.kernels),
+                                         ("specialized", a.specialize)) if on]
                 out("| robot | dtype | op | B | resident | host | cpu | cpu / resident |" +
                     "".join(f" {c} |" for c in extra))
                 out("|---|---|---|---:|---:|---:|---:|---:|" + "---:|" * len(extra))
@@ -252,6 +281,13 @@ def main():
                         if where in ("sample", "team") and op not in TEAM_OPS:
                             cols += " - |"  # (no team kernel: both columns would time the same kernel)
                             continue
+                        if where == "specialized":
+                            if op not in INSTANCE_OPS:
+                                cols += " - |"
+                                continue
+                            worst[(name, dtype)] = max(worst.get((name, dtype), 0.0),
+                                                       scaled_difference(getattr(h, op)(*dargs, **kw),
+                                                                         getattr(cu, op)(*dargs, **kw)))
                         try:
                             t = per_call(getattr(h, op), dargs, kw, dev[2], a.budget) / B * 1e6
                             cols += f" {t:.3f} |"
@@ -261,6 +297,11 @@ def main():
                         cols = " - |" * len(extra)
                     out(f"| {name} | {dtype} | {label} | {B} | {'-' if res is None else f'{res:.3f}'} | "
                         f"{host:.3f} | {cpu_t:.3f} | {'-' if res is None else f'{cpu_t / res:.1f}×'} |{cols}")
+    for line in notes:
+        out(f"- {line}")
+    for (name, dtype), d in worst.items():
+        out(f"- {name} {dtype}: the instance's results differ from the generic kernels' by {d:.1e} at most "
+            f"(relative to each output's scale)")
     if a.ilqr or a.only_ilqr:
         ilqr_table(out, dev, a.budget)
     if a.out:

@@ -11,7 +11,7 @@
 //
 //   cuda_stage_latency <robots dir>
 //
-// The second table times the phases of the team kernels (src/cuda/team_kernels.cuh)
+// The second table times the phases of the team kernels (include/rbdkit/cuda/team_kernels.cuh)
 // the same way: one block of kTeam threads, one sample, its first thread reading
 // the clock after each phase's last barrier. It says which serial phase decides a
 // team's time (∇FD's first phase is M⁻¹'s team on a warp beside RNEA on one thread;
@@ -30,7 +30,9 @@
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/model/configuration.hpp"
 #include "rbdkit/parsers/model.hpp"
-#include "../src/cuda/team_kernels.cuh"
+#include "rbdkit/cuda/team_kernels.cuh"
+#include "generated_iiwa.hpp"
+#include "rbdkit/codegen/robot_model.hpp"
 
 using namespace rbd;
 
@@ -49,11 +51,14 @@ const char* const kStageNames[kStages] = {"world placements", "rnea", "crba", "m
                                           "∇ID forward pass", "∇ID backward pass", "-M⁻¹ D (one nv x nv)",
                                           "∇FD (whole)", "empty (clock cost)"};
 
-template <typename S>
-__global__ void stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
+// Known: 1, the workspace is in shared memory and the compiler sees it (shared loads and stores);
+// 0, it is where ws_in_shared says, through a generic pointer, as in the backend's kernels
+template <typename S, typename Src, int Known>
+__global__ void stages(ModelView<S> call_model, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
                        int ws_in_shared, int reps, long long* cycles, S* sink) {
   extern __shared__ __align__(16) unsigned char shared_ws[];
-  Workspace<S> w = carve_workspace<S>(ws_in_shared ? shared_ws : global_ws, m.nb, m.nv);
+  const ModelView<S> m = Src::view(call_model);
+  Workspace<S> w = carve_workspace<S>(Known || ws_in_shared ? shared_ws : global_ws, m.nb, m.nv);
   const int nv = m.nv;
   S* out = sink;                  // (nv)
   S* D1 = sink + nv;              // (nv x nv)
@@ -92,11 +97,12 @@ const char* const kTeamStageNames[kTeamStages] = {
     "M⁻¹ (minv_team on the block)", "∇FD phase 3: -M⁻¹ ∂ID in tiles (matmul_tiles)",
     "qdd = M⁻¹ (u - c), a row per index"};
 
-template <typename S>
-__global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
+template <typename S, typename Src, int Known>
+__global__ void team_stages(ModelView<S> call_model, const S* q, const S* qd, const S* tau, S gravity, unsigned char* global_ws,
                             int ws_in_shared, unsigned long ws_bytes, int reps, long long* cycles, S* sink) {
   extern __shared__ __align__(16) unsigned char shared_ws[];
-  unsigned char* slice = ws_in_shared ? shared_ws : global_ws;
+  const ModelView<S> m = Src::view(call_model);
+  unsigned char* slice = Known || ws_in_shared ? shared_ws : global_ws;
   Workspace<S> w = carve_workspace<S>(slice, m.nb, m.nv);
   cuda::BlockTeam t;
   t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: RNEA's linear workspace, ∂ID, u - c, qdd, flag
@@ -166,7 +172,9 @@ __global__ void team_stages(ModelView<S> m, const S* q, const S* qd, const S* ta
   }
 }
 
-template <typename S> void run(const Model& model, const char* label, int reps) {
+// Src: the kernels' model, the view's (cuda::CallModel) or a generated robot's constants
+// (instance::RobotModel, the per-robot instances' kernels)
+template <typename S, typename Src = cuda::CallModel> void run(const Model& model, const char* label, int reps) {
   const int nq = model.nq, nv = model.nv, nb = model.nb();
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -195,49 +203,75 @@ template <typename S> void run(const Model& model, const char* label, int reps) 
   int shared_max = 0, clock_khz = 0;
   CHECK_CUDA(cudaDeviceGetAttribute(&shared_max, cudaDevAttrMaxSharedMemoryPerBlockOptin, 0));
   CHECK_CUDA(cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0));
-  CHECK_CUDA(cudaFuncSetAttribute(stages<S>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  CHECK_CUDA(cudaFuncSetAttribute(stages<S, Src, 0>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  CHECK_CUDA(cudaFuncSetAttribute(stages<S, Src, 1>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
   const ModelView<S> mv{nb, nq, nv, model.general_path() ? 1 : 0, d_bodies};
   std::printf("\n%s, %s, workspace %lu bytes (one thread)\n", label, sizeof(S) == 8 ? "float64" : "float32", ws_bytes);
-  std::printf("| stage | shared: cycles | µs | global: cycles | µs |\n|---|---:|---:|---:|---:|\n");
-  long long cyc[2][kStages];
-  for (int shared = 1; shared >= 0; --shared) {
-    const bool fits = ws_bytes <= static_cast<unsigned long>(shared_max);
-    for (int k = 0; k < kStages; ++k) cyc[shared][k] = -1;
-    if (shared && !fits) continue;
-    stages<S><<<1, 1, shared ? ws_bytes : 0>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_ws, shared, reps, d_cycles, d_sink);
+  std::printf("| stage | shared: cycles | µs | global: cycles | µs | shared, known to the compiler: cycles | µs |\n"
+              "|---|---:|---:|---:|---:|---:|---:|\n");
+  // columns: the workspace in shared memory through a generic pointer (as the backend's kernels), in
+  // global memory, in shared memory with the compiler knowing it
+  const bool fits = ws_bytes <= static_cast<unsigned long>(shared_max);
+  long long cyc[3][kStages];
+  for (int col = 0; col < 3; ++col) {
+    for (int k = 0; k < kStages; ++k) cyc[col][k] = -1;
+    if (col != 1 && !fits) continue;
+    if (col == 2)
+      stages<S, Src, 1><<<1, 1, ws_bytes>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_ws, 1, reps, d_cycles, d_sink);
+    else
+      stages<S, Src, 0><<<1, 1, col == 0 ? ws_bytes : 0>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_ws, col == 0, reps,
+                                                           d_cycles, d_sink);
     CHECK_CUDA(cudaGetLastError());
     CHECK_CUDA(cudaDeviceSynchronize());
-    CHECK_CUDA(cudaMemcpy(cyc[shared], d_cycles, sizeof(cyc[shared]), cudaMemcpyDeviceToHost));
+    CHECK_CUDA(cudaMemcpy(cyc[col], d_cycles, sizeof(cyc[col]), cudaMemcpyDeviceToHost));
   }
   for (int k = 0; k < kStages; ++k) {
     std::printf("| %s |", kStageNames[k]);
-    for (int shared = 1; shared >= 0; --shared) {
-      if (cyc[shared][k] < 0)
+    for (int col = 0; col < 3; ++col) {
+      if (cyc[col][k] < 0)
         std::printf(" — | — |");
       else
-        std::printf(" %lld | %.2f |", cyc[shared][k], cyc[shared][k] / (clock_khz * 1e-3));
+        std::printf(" %lld | %.2f |", cyc[col][k], cyc[col][k] / (clock_khz * 1e-3));
     }
     std::printf("\n");
   }
   // the team kernels' phases: a block of kTeam threads, the slice (workspace, then the team's extra)
-  // in shared memory where it fits
+  // in shared memory where it fits (through a generic pointer, and known to the compiler)
   const unsigned long team_bytes = ws_bytes + ((aba_derivatives_team_bytes<S>(nb, nv) + 255ul) & ~255ul);
   unsigned char* d_team_ws;
   long long* d_team_cycles;
   CHECK_CUDA(cudaMalloc(&d_team_ws, team_bytes));
   CHECK_CUDA(cudaMalloc(&d_team_cycles, kTeamStages * sizeof(long long)));
-  CHECK_CUDA(cudaFuncSetAttribute(team_stages<S>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  CHECK_CUDA(cudaFuncSetAttribute(team_stages<S, Src, 0>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
+  CHECK_CUDA(cudaFuncSetAttribute(team_stages<S, Src, 1>, cudaFuncAttributeMaxDynamicSharedMemorySize, shared_max));
   const bool team_shared = team_bytes <= static_cast<unsigned long>(shared_max);
-  team_stages<S><<<1, cuda::kTeam, team_shared ? team_bytes : 0>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_team_ws,
-                                                                   team_shared, ws_bytes, 20, d_team_cycles, d_sink);
-  CHECK_CUDA(cudaGetLastError());
-  CHECK_CUDA(cudaDeviceSynchronize());
-  long long tc[kTeamStages];
-  CHECK_CUDA(cudaMemcpy(tc, d_team_cycles, sizeof(tc), cudaMemcpyDeviceToHost));
-  std::printf("\n%s, %s, a team of %d threads, slice %lu bytes in %s memory\n| team phase | cycles | µs |\n|---|---:|---:|\n",
+  long long tc[2][kTeamStages];
+  for (int known = 0; known < 2; ++known) {
+    for (int k = 0; k < kTeamStages; ++k) tc[known][k] = -1;
+    if (known && !team_shared) continue;
+    if (known)
+      team_stages<S, Src, 1><<<1, cuda::kTeam, team_bytes>>>(mv, d_q, d_qd, d_tau, S(-9.81), d_team_ws, 1, ws_bytes,
+                                                               20, d_team_cycles, d_sink);
+    else
+      team_stages<S, Src, 0><<<1, cuda::kTeam, team_shared ? team_bytes : 0>>>(
+          mv, d_q, d_qd, d_tau, S(-9.81), d_team_ws, team_shared, ws_bytes, 20, d_team_cycles, d_sink);
+    CHECK_CUDA(cudaGetLastError());
+    CHECK_CUDA(cudaDeviceSynchronize());
+    CHECK_CUDA(cudaMemcpy(tc[known], d_team_cycles, sizeof(tc[known]), cudaMemcpyDeviceToHost));
+  }
+  std::printf("\n%s, %s, a team of %d threads, slice %lu bytes in %s memory\n"
+              "| team phase | cycles | µs | shared, known to the compiler: cycles | µs |\n|---|---:|---:|---:|---:|\n",
               label, sizeof(S) == 8 ? "float64" : "float32", cuda::kTeam, team_bytes, team_shared ? "shared" : "global");
-  for (int k = 0; k < kTeamStages; ++k)
-    std::printf("| %s | %lld | %.2f |\n", kTeamStageNames[k], tc[k], tc[k] / (clock_khz * 1e-3));
+  for (int k = 0; k < kTeamStages; ++k) {
+    std::printf("| %s |", kTeamStageNames[k]);
+    for (int known = 0; known < 2; ++known) {
+      if (tc[known][k] < 0)
+        std::printf(" — | — |");
+      else
+        std::printf(" %lld | %.2f |", tc[known][k], tc[known][k] / (clock_khz * 1e-3));
+    }
+    std::printf("\n");
+  }
   cudaFree(d_bodies), cudaFree(d_q), cudaFree(d_qd), cudaFree(d_tau), cudaFree(d_sink), cudaFree(d_cycles),
       cudaFree(d_ws), cudaFree(d_team_ws), cudaFree(d_team_cycles);
 }
@@ -259,6 +293,11 @@ int main(int argc, char** argv) {
     const std::string label = std::string(name) + (floating ? " floating" : "");
     run<float>(m, label.c_str(), 20);
     run<double>(m, label.c_str(), 20);
+    if (std::string(name) == "iiwa") {  // the same kernels on the generated header's constants
+      using Iiwa = instance::RobotModel<rbdkit_generated::Iiwa>;
+      run<float, Iiwa>(m, "iiwa as compile-time constants (cuda/generated_iiwa.hpp)", 20);
+      run<double, Iiwa>(m, "iiwa as compile-time constants (cuda/generated_iiwa.hpp)", 20);
+    }
   }
   return 0;
 }

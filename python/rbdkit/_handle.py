@@ -36,10 +36,12 @@ rbdkit's headers ($RBDKIT_CACHE_DIR, else ~/.cache/rbdkit: the first handle
 of a robot takes seconds, later ones load the library) and loads it: float64
 single-sample calls of the dynamics, M, M⁻¹, their first derivatives and the
 step then run its per-robot kernels, with the same results to rounding
-(batches stay on the batch engine). Without a compiler (or on backend="cuda") it warns once
-and keeps the generic kernels (so does a float32 handle, which computes on the
-engine); `specialized` says which is in use
-(docs/generated-code.md).
+(batches stay on the batch engine). On backend="cuda" it compiles the CUDA
+backend's kernels on the robot's constants instead (nvcc, or the C++ compiler
+in interpret mode) for ID, M⁻¹, FD, ∇ID, ∇FD and the step gradient, every
+batch size, both dtypes. Without a compiler it warns once and keeps the
+generic kernels (so does a CPU float32 handle, which computes on the engine);
+`specialized` says which is in use (docs/generated-code.md).
 """
 
 import inspect

@@ -22,6 +22,7 @@
 
 #include "rbdkit/codegen/generate.hpp"
 #include "rbdkit/codegen/instance.hpp"
+#include "rbdkit/cuda/instance.cuh"
 
 #ifndef RBDKIT_SOURCE_INCLUDE_DIR
 #define RBDKIT_SOURCE_INCLUDE_DIR ""
@@ -36,6 +37,16 @@ struct Instance {
   void* library = nullptr;
   std::vector<ops::Kernel<double>> kernels;  // per registered operation (null: none)
   ~Instance() {
+    if (library) dlclose(library);
+  }
+};
+
+struct CudaInstance {
+  std::string path;
+  void* library = nullptr;
+  const cuda::instance::Description* description = nullptr;
+  std::vector<const void*> f64, f32;  // per registered operation: its launch (null: none)
+  ~CudaInstance() {
     if (library) dlclose(library);
   }
 };
@@ -106,21 +117,30 @@ fs::path cache_folder(const SpecializeOptions& o) {
   return fs::temp_directory_path() / ("rbdkit-cache-" + std::to_string(::geteuid()));  // (a folder per user)
 }
 
-// the compile command's fixed options (the key hashes them with the rest)
+// the compile command's fixed options (the key hashes them with the rest): the C++ compiler's, and
+// nvcc's (a CUDA instance's real kernels; host options through -Xcompiler)
 constexpr const char* kFixedFlags = "-std=c++17 -fPIC -shared -fvisibility=hidden";
+constexpr const char* kNvccFixedFlags = "-std=c++17 -shared -Xcompiler -fPIC,-fvisibility=hidden";
+
+// how an instance is compiled: the compiler command, its fixed options, the caller's, the source's
+// file extension
+struct Build {
+  std::string compiler, fixed, flags, extension;
+};
 
 // the key: the instance ABI, the source (so every constant of the model), the compiler's command and
 // version, the flags, the CPU's features (for -march=native) and every rbdkit header (the source
 // includes most of them, and a changed one changes what the library computes)
-std::string cache_key(const std::string& source, const std::string& compiler, const std::string& flags,
-                      const fs::path& include_dir) {
+std::string cache_key(const std::string& source, const Build& b, const fs::path& include_dir,
+                      const std::string& extra) {
   Hash h;
   h.add(std::to_string(instance::kAbi));
+  h.add(extra);
   h.add(source);
-  h.add(compiler);
-  h.add(output_of(compiler_command(compiler) + " --version"));
-  h.add(flags);
-  h.add(kFixedFlags);
+  h.add(b.compiler);
+  h.add(output_of(compiler_command(b.compiler) + " --version"));
+  h.add(b.flags);
+  h.add(b.fixed);
   {  // the CPU's model and flags (Linux), which -march=native resolves to
     std::ifstream cpu("/proc/cpuinfo");
     std::string line;
@@ -148,18 +168,18 @@ std::string head(const std::string& text, int lines) {
 
 // compiles `source` into `library` (through a temporary file beside it, renamed when done, so
 // that a concurrent process never loads half a library)
-void compile(const std::string& source, const std::string& compiler, const std::string& flags,
-             const fs::path& include_dir, const fs::path& library) {
+void compile(const std::string& source, const Build& b, const fs::path& include_dir, const fs::path& library) {
   if (fs::create_directories(library.parent_path()))
     ::chmod(library.parent_path().c_str(), 0700);  // (a folder made here: this user's alone)
   const std::string stem = library.string() + ".tmp" + std::to_string(::getpid());
-  const std::string src = stem + ".cpp", out = stem + ".so", log = stem + ".log";
+  const std::string src = stem + b.extension, out = stem + ".so", log = stem + ".log";
   {
     std::ofstream f(src);
     f << source;
     if (!f) throw std::runtime_error("specialize: cannot write " + src);
   }
-  const std::string cmd = compiler_command(compiler) + " " + kFixedFlags + " " + flags + " -I" +
+  const std::string& compiler = b.compiler;
+  const std::string cmd = compiler_command(compiler) + " " + b.fixed + " " + b.flags + " -I" +
                           quoted(include_dir.string(), "include folder") + " -o " + quoted(out, "cache folder") +
                           " " + quoted(src, "cache folder") + " > " + quoted(log, "cache folder") + " 2>&1";
   const int status = std::system(cmd.c_str());
@@ -171,8 +191,11 @@ void compile(const std::string& source, const std::string& compiler, const std::
     fs::remove(out, ec);
     // the shell's 127: the command was not found
     if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
-      throw std::runtime_error("specialize: no C++ compiler: '" + compiler +
-                               "' was not found (set CXX, or SpecializeOptions::compiler)");
+      throw std::runtime_error(b.extension == ".cu"
+                                   ? "specialize: no CUDA compiler: '" + compiler +
+                                         "' was not found (set CUDACXX, or SpecializeOptions::cuda_compiler)"
+                                   : "specialize: no C++ compiler: '" + compiler +
+                                         "' was not found (set CXX, or SpecializeOptions::compiler)");
     throw std::runtime_error("specialize: '" + compiler + "' failed to compile the instance:\n" + head(output, 12));
   }
   ::chmod(out.c_str(), 0755);  // (writable by this user alone, whatever the umask: open_instance checks it)
@@ -189,14 +212,19 @@ void check_private(const fs::path& p, mode_t not_writable_by) {
                              " is not this user's (owned by another user, or writable by others): not loaded");
 }
 
-// the library's instance for `model`, checked: ABI, the types' layout, the robot's sizes
-std::shared_ptr<Instance> open_instance(const fs::path& library, const Model& model) {
+// the library, loaded (inst->library), once checked to be this user's alone
+template <class I> void open_library(const fs::path& library, I& inst) {
   check_private(library.parent_path(), S_IWOTH);
   check_private(library, S_IWGRP | S_IWOTH);
+  inst.path = library.string();
+  inst.library = dlopen(inst.path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!inst.library) throw std::runtime_error(std::string("specialize: cannot load ") + inst.path + ": " + dlerror());
+}
+
+// the library's instance for `model`, checked: ABI, the types' layout, the robot's sizes
+std::shared_ptr<Instance> open_instance(const fs::path& library, const Model& model) {
   auto inst = std::make_shared<Instance>();
-  inst->path = library.string();
-  inst->library = dlopen(inst->path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (!inst->library) throw std::runtime_error(std::string("specialize: cannot load ") + inst->path + ": " + dlerror());
+  open_library(library, *inst);
   using DescribeFn = const instance::Description* (*)();
   auto describe = reinterpret_cast<DescribeFn>(dlsym(inst->library, "rbdkit_instance"));
   const instance::Description* d = describe ? describe() : nullptr;
@@ -218,6 +246,62 @@ std::shared_ptr<Instance> open_instance(const fs::path& library, const Model& mo
   return inst;
 }
 
+// the library's CUDA instance for `model`, checked as open_instance, and that it holds the kernels asked for
+std::shared_ptr<CudaInstance> open_cuda_instance(const fs::path& library, const Model& model, bool device) {
+  auto inst = std::make_shared<CudaInstance>();
+  open_library(library, *inst);
+  using DescribeFn = const cuda::instance::Description* (*)();
+  auto describe = reinterpret_cast<DescribeFn>(dlsym(inst->library, "rbdkit_cuda_instance"));
+  const cuda::instance::Description* d = describe ? describe() : nullptr;
+  if (!d || d->abi != cuda::instance::kAbi)
+    throw std::runtime_error("specialize: " + inst->path + " is not an rbdkit CUDA instance of ABI " +
+                             std::to_string(cuda::instance::kAbi));
+  if (d->layout != cuda::instance::kLayout)
+    throw std::runtime_error("specialize: " + inst->path + " was compiled with other rbdkit headers than this library's");
+  if (d->nb != model.nb() || d->nq != model.nq || d->nv != model.nv)
+    throw std::runtime_error("specialize: " + inst->path + " is another robot's (nb, nq, nv = " + std::to_string(d->nb) +
+                             ", " + std::to_string(d->nq) + ", " + std::to_string(d->nv) + ")");
+  if ((d->device != 0) != device)
+    throw std::runtime_error("specialize: " + inst->path + (device ? " holds interpret launches, not GPU kernels"
+                                                                    : " holds GPU kernels, not interpret launches"));
+  inst->description = d;
+  inst->f64.assign(ops::op_table().size(), nullptr);
+  inst->f32.assign(ops::op_table().size(), nullptr);
+  for (int i = 0; i < d->n_ops; ++i) {
+    const int op = ops::find_op(d->names[i]);
+    if (op < 0) throw std::runtime_error("specialize: " + inst->path + " has an unknown operation " + d->names[i]);
+    inst->f64[op] = reinterpret_cast<const void*>(d->f64[i]);
+    inst->f32[op] = reinterpret_cast<const void*>(d->f32[i]);
+  }
+  return inst;
+}
+
+std::string robot_stem(const Model& model) {  // the robot's name as a file name
+  std::string stem;
+  for (char c : model.name) stem += std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' ? c : '_';
+  return stem.empty() ? "robot" : stem.substr(0, 40);
+}
+
+fs::path checked_include_dir(const SpecializeOptions& options) {
+  const fs::path include_dir = options.include_dir.empty() ? fs::path(RBDKIT_SOURCE_INCLUDE_DIR)
+                                                           : fs::path(options.include_dir);
+  if (include_dir.empty() || !fs::is_regular_file(include_dir / "rbdkit" / "codegen" / "instance.hpp"))
+    throw std::runtime_error("specialize: rbdkit's headers are not in '" + include_dir.string() +
+                             "' (SpecializeOptions::include_dir: the folder holding rbdkit/)");
+  return include_dir;
+}
+
+std::string cxx_compiler(const SpecializeOptions& options) {
+  return !options.compiler.empty() ? options.compiler : !env("CXX").empty() ? env("CXX") : "c++";
+}
+
+std::string nvcc_compiler(const SpecializeOptions& options) {
+  if (!options.cuda_compiler.empty()) return options.cuda_compiler;
+  if (!env("CUDACXX").empty()) return env("CUDACXX");
+  if (output_of("command -v nvcc").find("nvcc") != std::string::npos) return "nvcc";
+  return "/usr/local/cuda/bin/nvcc";
+}
+
 }  // namespace
 
 std::string instance_source(const Model& model) {
@@ -227,30 +311,57 @@ std::string instance_source(const Model& model) {
 
 std::shared_ptr<const Instance> load_instance(const Model& model, const SpecializeOptions& options) {
   if (model.nb() == 0) throw std::runtime_error("specialize: the model has no moving body");
-  const std::string compiler = !options.compiler.empty() ? options.compiler
-                               : !env("CXX").empty()      ? env("CXX")
-                                                          : "c++";
-  const fs::path include_dir = options.include_dir.empty() ? fs::path(RBDKIT_SOURCE_INCLUDE_DIR)
-                                                           : fs::path(options.include_dir);
-  if (include_dir.empty() || !fs::is_regular_file(include_dir / "rbdkit" / "codegen" / "instance.hpp"))
-    throw std::runtime_error("specialize: rbdkit's headers are not in '" + include_dir.string() +
-                             "' (SpecializeOptions::include_dir: the folder holding rbdkit/)");
+  const fs::path include_dir = checked_include_dir(options);
+  const Build build{cxx_compiler(options), kFixedFlags, options.flags, ".cpp"};
   const std::string source = instance_source(model);
-  const std::string key = cache_key(source, compiler, options.flags, include_dir);
-  std::string stem;  // the robot's name as a file name
-  for (char c : model.name) stem += std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' ? c : '_';
-  const fs::path library = cache_folder(options) / ((stem.empty() ? "robot" : stem.substr(0, 40)) + "-" + key + ".so");
+  const std::string key = cache_key(source, build, include_dir, "");
+  const fs::path library = cache_folder(options) / (robot_stem(model) + "-" + key + ".so");
 
   // one load per library and process: handles on the same model share it
   static std::mutex lock;
   static std::map<std::string, std::weak_ptr<Instance>> loaded;
   std::lock_guard<std::mutex> lk(lock);
   if (auto inst = loaded[library.string()].lock()) return inst;
-  if (!fs::is_regular_file(library)) compile(source, compiler, options.flags, include_dir, library);
+  if (!fs::is_regular_file(library)) compile(source, build, include_dir, library);
   auto inst = open_instance(library, model);
   loaded[library.string()] = inst;
   return inst;
 }
+
+std::string cuda_instance_source(const Model& model) {
+  return generate_header(model, kStructName, "a compiled CUDA instance (Handle::specialize, backend='cuda')") +
+         "\n#include \"rbdkit/cuda/instance.cuh\"\n\nRBDKIT_CUDA_INSTANCE(rbdkit_generated::" + kStructName + ")\n";
+}
+
+std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const SpecializeOptions& options,
+                                                       bool device, const std::string& device_key) {
+  if (model.nb() == 0) throw std::runtime_error("specialize: the model has no moving body");
+  const fs::path include_dir = checked_include_dir(options);
+  const Build build = device ? Build{nvcc_compiler(options), kNvccFixedFlags, options.cuda_flags, ".cu"}
+                             : Build{cxx_compiler(options), kFixedFlags, options.flags, ".cpp"};
+  const std::string source = cuda_instance_source(model);
+  const std::string key = cache_key(
+      source, build, include_dir,
+      "cuda instance " + std::to_string(cuda::instance::kAbi) + (device ? " device " + device_key : " interpret"));
+  const fs::path library =
+      cache_folder(options) / (robot_stem(model) + (device ? "-cuda-" : "-cuda-interpret-") + key + ".so");
+  static std::mutex lock;
+  static std::map<std::string, std::weak_ptr<CudaInstance>> loaded;
+  std::lock_guard<std::mutex> lk(lock);
+  if (auto inst = loaded[library.string()].lock()) return inst;
+  if (!fs::is_regular_file(library)) compile(source, build, include_dir, library);
+  auto inst = open_cuda_instance(library, model, device);
+  loaded[library.string()] = inst;
+  return inst;
+}
+
+const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32) {
+  const std::vector<const void*>& t = f32 ? instance.f32 : instance.f64;
+  return op >= 0 && op < static_cast<int>(t.size()) ? t[op] : nullptr;
+}
+bool cuda_instance_device(const CudaInstance& instance) { return instance.description->device != 0; }
+void cuda_instance_activate(const CudaInstance& instance, int device) { instance.description->activate(device); }
+const std::string& instance_path(const CudaInstance& instance) { return instance.path; }
 
 ops::Kernel<double> instance_kernel(const Instance& instance, int op) {
   return op >= 0 && op < static_cast<int>(instance.kernels.size()) ? instance.kernels[op] : nullptr;

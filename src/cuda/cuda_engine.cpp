@@ -15,6 +15,7 @@
 #include "device.hpp"
 #include "memory.hpp"
 #include "rbdkit/batch/dynamics.hpp"
+#include "rbdkit/codegen/specialize.hpp"
 
 namespace rbd {
 
@@ -101,6 +102,7 @@ struct CudaEngine::Impl {
   std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
   std::vector<int> team_wide_nv;           // per operation: TeamOp<Op>::wide_nv
   cuda::DeviceLimits limits{};
+  std::shared_ptr<const CudaInstance> instance;  // use_instance: the robot's own kernels (null: none)
   std::mutex call;
   std::vector<int> status_host;
   // the flag samples set when they fail (DeviceCall::failed): pinned host memory that the kernels write
@@ -284,6 +286,9 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   int* status_d = static_cast<int*>(status.p);
   dc.failed = failed_device;
   dc.call_id = call_id = call_id == 0x7fffffff ? 1 : call_id + 1;  // (never 0, the flag's first value)
+  // the robot's instance launches the operations it compiled (use_instance), the device the rest
+  const cuda::Launcher<T> own =
+      instance ? reinterpret_cast<cuda::Launcher<T>>(cuda_instance_launch(*instance, op_id, sizeof(T) == 4)) : nullptr;
   for (long s0 = 0; s0 < B; s0 += chunk) {
     cuda::DeviceCall<T> part = dc;
     part.B = std::min(chunk, B - s0);
@@ -292,8 +297,9 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
     for (int o = 0; o < op.n_out; ++o)
       if (part.out[o]) part.out[o] += s0 * out_values[o];
     part.status = status_d + s0;
-    dev->launch(op_id, part, part.B == B ? whole : shape_of(part.B, cuda::kWorkGlobal),
-                stream);  // (a chunk: global memory, as the whole call)
+    const cuda::LaunchShape shape = part.B == B ? whole : shape_of(part.B, cuda::kWorkGlobal);  // (a chunk: global)
+    if (own) own(part, shape, stream);
+    else dev->launch(op_id, part, shape, stream);
   }
   // the outputs of host arrays; the statuses only when the flag (written in place) says
   for (int o = 0; o < op.n_out; ++o)
@@ -462,8 +468,19 @@ void CudaEngine::run_op(int op, const ops::OpCall& call, bool device_arrays) {
                                 ": B: expected a positive batch size, got " + std::to_string(call.B));
   std::lock_guard<std::mutex> lk(impl_->call);
   impl_->dev->activate();
+  if (impl_->instance) cuda_instance_activate(*impl_->instance, impl_->dev->ordinal());
   if (impl_->dtype == "float32") impl_->run<float>(op, call, device_arrays);
   else impl_->run<double>(op, call, device_arrays);
 }
+
+void CudaEngine::use_instance(std::shared_ptr<const CudaInstance> instance) {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  if (instance && cuda_instance_device(*instance) == impl_->interpret)
+    throw std::invalid_argument(std::string("use_instance: ") + instance_path(*instance) + " holds " +
+                                (impl_->interpret ? "GPU kernels; this engine runs in interpret mode"
+                                                  : "interpret launches; this engine runs on a GPU"));
+  impl_->instance = std::move(instance);
+}
+bool CudaEngine::has_instance() const { return impl_->instance != nullptr; }
 
 }  // namespace rbd

@@ -10,7 +10,7 @@
 #include <memory>
 #include <string>
 
-#include "team_kernels.cuh"
+#include "rbdkit/cuda/team_kernels.cuh"
 
 namespace rbd {
 namespace cuda {

@@ -1,5 +1,6 @@
 // src/cuda/interpret_f32.cpp — the interpret launches on float (interpret_routes.hpp)
-#include "interpret_routes.hpp"
+#include "device.hpp"
+#include "rbdkit/cuda/interpret_routes.hpp"
 
 namespace rbd {
 namespace cuda {

@@ -1,5 +1,6 @@
 // src/cuda/interpret_f64.cpp — the interpret launches on double (interpret_routes.hpp)
-#include "interpret_routes.hpp"
+#include "device.hpp"
+#include "rbdkit/cuda/interpret_routes.hpp"
 
 namespace rbd {
 namespace cuda {

@@ -1,5 +1,6 @@
 // src/cuda/routes_f32.cu — the real kernels on float (device_routes.cuh)
-#include "device_routes.cuh"
+#include "device.hpp"
+#include "rbdkit/cuda/device_routes.cuh"
 
 namespace rbd {
 namespace cuda {

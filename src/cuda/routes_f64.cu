@@ -1,5 +1,6 @@
 // src/cuda/routes_f64.cu — the real kernels on double (device_routes.cuh)
-#include "device_routes.cuh"
+#include "device.hpp"
+#include "rbdkit/cuda/device_routes.cuh"
 
 namespace rbd {
 namespace cuda {

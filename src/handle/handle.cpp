@@ -208,11 +208,22 @@ void Handle::check(int op, const ops::OpCall& call, bool values) const {
 
 bool Handle::specialize(const SpecializeOptions& options) {
   std::lock_guard<std::mutex> lk(run_);  // (the serial loop reads instance_ under it)
-  if (cuda_ || dtype_ == "float32") {
-    specialize_error_ = cuda_ ? "specialize: a backend='cuda' handle runs the CUDA backend's kernels; an instance serves "
-                                "the CPU's float64 serial loop"
-                              : "specialize: a float32 handle runs every call on the batch engine; an instance serves "
-                                "the CPU's float64 serial loop";
+  if (cuda_) {
+    try {
+      auto inst = load_cuda_instance(model_, options, !cuda_->interpret(), cuda_->device_name());
+      cuda_->use_instance(inst);
+      cuda_instance_ = std::move(inst);
+      specialize_error_.clear();
+    } catch (const std::exception& e) {
+      cuda_->use_instance(nullptr);
+      cuda_instance_.reset();
+      specialize_error_ = e.what();
+    }
+    return cuda_instance_ != nullptr;
+  }
+  if (dtype_ == "float32") {
+    specialize_error_ = "specialize: a float32 handle runs every call on the batch engine; an instance serves "
+                        "the CPU's float64 serial loop";
     instance_.reset();
     return false;
   }
@@ -226,7 +237,9 @@ bool Handle::specialize(const SpecializeOptions& options) {
   return instance_ != nullptr;
 }
 
-std::string Handle::instance_library() const { return instance_ ? instance_path(*instance_) : std::string(); }
+std::string Handle::instance_library() const {
+  return instance_ ? instance_path(*instance_) : cuda_instance_ ? instance_path(*cuda_instance_) : std::string();
+}
 
 void Handle::run(int op, const ops::OpCall& call) {
   check(op, call);

@@ -1,5 +1,5 @@
 // The CUDA backend (include/rbdkit/cuda/cuda_engine.hpp) in interpret mode:
-// the kernels' source (src/cuda/kernels.cuh) under the emulated launch, so
+// the kernels' source (include/rbdkit/cuda/kernels.cuh) under the emulated launch, so
 // that CI, which has no GPU, runs every registered operation on every test
 // model against the CPU: float64 to 1e-12 relative of the serial loop (1e-11
 // where M⁻¹ is applied: float64_bound),
@@ -223,7 +223,7 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
-// the team kernels (src/cuda/team_kernels.cuh: ID, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
+// the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
 // step's gradient with and without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as
 // the sample-per-thread kernels are: every test model, both dtypes, the work in shared and in global
 // memory, every output or some, f_ext, every integrator scheme in both conventions (MuJoCo's, asked

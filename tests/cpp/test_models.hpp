@@ -44,7 +44,7 @@ inline double max_rel_err(const std::vector<double>& a, const std::vector<double
   return e / s;
 }
 
-// a cooperative team as interpret mode runs one (src/cuda/team_kernels.cuh, SerialTeam): a phase's
+// a cooperative team as interpret mode runs one (include/rbdkit/cuda/team_kernels.cuh, SerialTeam): a phase's
 // indices one after another, the last first (model/team.hpp's team forms, without a GPU)
 struct ReversedTeam {
   static constexpr bool cooperative = true;

@@ -336,3 +336,13 @@ def test_specialize_falls_back_with_a_warning(monkeypatch, tmp_path):
     # a float32 handle computes every call on the batch engine: it says so
     with pytest.warns(RuntimeWarning, match="float32 handle runs every call on the batch engine"):
         assert not rbdkit.Handle(model, dtype="float32", specialize=True).specialized
+
+
+def test_the_checked_in_iiwa_header_is_current():
+    """cuda/generated_iiwa.hpp (cuda/stage_latency.cu times the kernels on its constants) is
+    `rbdkit generate iiwa --name Iiwa` of this tree"""
+    with open(os.path.join(ROOT, "cuda", "generated_iiwa.hpp")) as f:
+        checked_in = f.read()
+    assert checked_in == rbdkit.generate(rbdkit.robots.load("iiwa"), "Iiwa", source="iiwa"), \
+        "cuda/generated_iiwa.hpp is stale: python3 -m rbdkit generate iiwa --name Iiwa -o cuda/generated_iiwa.hpp"
+

@@ -17,6 +17,7 @@ namespace rbd {
 //   writes w.X_parent, w.v, w.c, w.IA, w.f (= pA)
 template <typename S>
 RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* fext) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     w.X_parent[i] = body_transform(b, q);
@@ -142,6 +143,7 @@ RBD_HD void aba_project_inertia(const BodyDesc<S>& b, const Transform<S>& X, con
 // pass 2 (leaves to root): U, D⁻¹, u = tau - Sᵀ pA; articulated inertias and
 // bias forces handed to the parent. writes w.U, w.Dinv, w.u, w.IA, w.f
 template <typename S> RBD_HD bool aba_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* tau) {
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     Force<S>* U = w.U + 6 * i;
@@ -168,6 +170,7 @@ template <typename S> RBD_HD bool aba_backward_pass(const ModelView<S>& m, Works
 // pass 3 (root to leaves): a_i = X⁻¹ a_λ + c_i, qdd_i = D⁻¹(u - Uᵀ a_i), a_i += S qdd_i
 //   writes w.a (gravity included), qdd (nv)
 template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Workspace<S>& w, S gravity, S* qdd) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     Motion<S> ap = Motion<S>::zero();
@@ -192,10 +195,12 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
 // joint once an algorithm has reported a mass matrix that is not positive
 // definite. writes w.X_parent, w.IA, w.U, w.Dinv
 template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Workspace<S>& w, const S* q) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     w.X_parent[i] = body_transform(m.body[i], q);
     w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
   }
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     Force<S>* U = w.U + 6 * i;
@@ -213,6 +218,7 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
   S* M = w.dense;
   crba(m, w, q, M);
   rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, qdd);  // qdd <- c
+  RBD_UNROLL
   for (int k = 0; k < m.nv; ++k) qdd[k] = tau[k] - qdd[k];
   if (!cholesky(M, m.nv)) return false;
   cholesky_solve(M, m.nv, qdd);

@@ -56,6 +56,7 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
 template <typename S> RBD_HD bool tree_sparse_product_pays(const ModelView<S>& m) {
   if (m.has_mimic) return false;
   long nnz = 0;  // Σ over DoFs c of the DoFs on c's root paths: its ancestors' and its subtree's
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     long above = 0;
     for (int j = m.body[i].parent; j >= 0; j = m.body[j].parent) above += m.body[j].nv;
@@ -113,7 +114,7 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   return true;
 }
 
-// aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, src/cuda/team_kernels.cuh),
+// aba_derivatives on a team of threads (model/team.hpp; the GPU's team kernels, rbdkit/cuda/team_kernels.cuh),
 // for a model without mimic joints:
 //   - M⁻¹ on the first warp (minv_team) beside the bias c = RNEA(q, qd, 0, f_ext) on one thread, in a
 //     workspace of its own (RNEA's, linear, in `extra`); then qdd = M⁻¹ (tau - c), a row per index

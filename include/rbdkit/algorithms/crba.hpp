@@ -67,6 +67,7 @@ RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign,
 // reads w.X_parent; writes w.Ic (composites, body frames), w.F (nv x 6: the columns), M
 template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
   S* F = w.F;
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, c_end = vi + b.nv_subtree;
@@ -89,6 +90,7 @@ template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m,
 // forward pass: world placements, subspace columns, world body inertias
 //   writes w.X_parent, w.X_world, w.S_world, w.Ic
 template <typename S> RBD_HD void crba_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     world_placement(m, w, q, i);
@@ -122,6 +124,7 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   const int nv = m.nv;
   const bool add = m.has_mimic;
   for (int k = 0; k < nv * nv; ++k) M[k] = S(0);
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& bi = m.body[i];
     const Motion<S>* si = w.S_world + 6 * i;
@@ -158,6 +161,7 @@ template <typename S> RBD_HD void crba_world(const ModelView<S>& m, Workspace<S>
 // w.Ic, w.F), on the general path in world coordinates (crba_world)
 template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
   if (m.has_mimic) return crba_world(m, w, q, M);
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     w.X_parent[i] = body_transform(m.body[i], q);
     w.Ic[i] = m.body[i].I;

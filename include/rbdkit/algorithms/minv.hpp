@@ -172,6 +172,7 @@ RBD_HD void mat6_times_rows(const Mat6<S>& A, const S* RBD_RESTRICT in, int is, 
 template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
   const int nv = m.nv;
   // body placements X_0i, articulated inertias start as the body inertias (world frame)
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     world_placement(m, w, q, i, false);
@@ -181,6 +182,7 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
   S* F = w.F;  // 6 x nv: the columns of F_i, row r of every column at r·nv
   for (int k = 0; k < 6 * nv; ++k) F[k] = S(0);
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv, c_end = b.v_idx + b.nv_subtree;
@@ -266,6 +268,7 @@ RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int
 // 6 x nv (w.P + 6 nv i; a one-DoF body's columns at once, minv_forward_row)
 template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
   const int nv = m.nv;
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv;
@@ -302,6 +305,7 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
   const int nv = m.nv;
   for (int r = 0; r < nv; ++r) Minv[r * nv + c] = S(0);
   Force<S> fc = Force<S>::zero();  // F's column c
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     const int vi = b.v_idx, ni = b.nv;
@@ -322,6 +326,7 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
     if (b.parent < 0) continue;
     for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
   }
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i)  // parents first
     if (m.body[i].v_idx <= c) {
       const int p = m.body[i].parent;
@@ -348,6 +353,7 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
     });
     t.one([&] {
       *ok = 1;
+      RBD_UNROLL
       for (int i = m.nb - 1; i >= 0; --i) {
         const BodyDesc<S>& b = m.body[i];
         Force<S>* U = w.U + 6 * i;

@@ -43,6 +43,7 @@ template <typename S> RBD_HD void rnea_body_force(const ModelView<S>& m, Workspa
 template <typename S>
 RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                               const S* qdd, const S* fext, S gravity) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     w.X_parent[i] = body_transform(m.body[i], q);
     rnea_body_motion(m, w, i, qd, qdd, gravity);
@@ -52,7 +53,9 @@ RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q
 
 // backward pass: tau_i = Sᵀ f_i, f_λ += X f_i    writes tau (nv), w.f
 template <typename S> RBD_HD void rnea_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* tau) {
+  RBD_UNROLL
   for (int k = 0; k < m.nv; ++k) tau[k] = S(0);
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     S t[6];
@@ -81,6 +84,7 @@ RBD_HD void rnea_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
   } else {
     t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
     t.one([&] {
+      RBD_UNROLL
       for (int i = 0; i < m.nb; ++i) rnea_body_motion(m, w, i, qd, qdd, gravity);
     });
     t.each(m.nb, [&](long i) { rnea_body_force(m, w, static_cast<int>(i), fext); });

@@ -45,6 +45,7 @@ RBD_HD void rnea_derivatives_body_terms(const ModelView<S>&, Workspace<S>& w, in
 template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                           const S* qdd, const S* fext, S gravity, bool placed = false) {
+  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     // placement, world-frame subspace, velocity, acceleration, column sensitivities
     if (!placed) world_placement(m, w, q, i);
@@ -72,6 +73,7 @@ RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, 
     });
   }
   t.one([&] {  // v_i = v_λ + vJ, a_i = a_λ + aJ + v_i × vJ, parents first
+    RBD_UNROLL
     for (int i = 0; i < m.nb; ++i) {
       Motion<S> vp, ap;
       parent_motion(m, w, i, gravity, true, vp, ap);
@@ -92,6 +94,7 @@ RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, 
 // subtree composites: w.Ic, w.h, w.f and w.B of each body become its subtree's
 // sums (children before parents), what the derivative entries read
 template <typename S> RBD_HD void rnea_derivatives_composites(const ModelView<S>& m, Workspace<S>& w) {
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const int p = m.body[i].parent;
     if (p < 0) continue;
@@ -106,7 +109,7 @@ template <typename S> RBD_HD void rnea_derivatives_composites(const ModelView<S>
 // joint i in the columns of i and its ancestors, and the rows of i's strict
 // ancestors in the columns of i (tau's entries of joint i too, when not null).
 // Bodies own disjoint entries on a model without mimic joints, so they may
-// run in any order, or side by side (src/cuda/team_kernels.cuh); a mimic body
+// run in any order, or side by side (rbdkit/cuda/team_kernels.cuh); a mimic body
 // adds into its target's entries, so there they run one after another. Adds
 // into dtau_dq, dtau_dqd (nv x nv, row-major) and tau (nv)
 template <typename S>
@@ -163,6 +166,7 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
   if (tau)
     for (int k = 0; k < nv; ++k) tau[k] = S(0);
   rnea_derivatives_composites(m, w);
+  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) rnea_derivatives_body(m, w, i, dtau_dq, dtau_dqd, tau);
 }
 
@@ -192,6 +196,7 @@ RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspac
   } else {
     rnea_derivatives_forward_team(t, m, w, q, qd, qdd, fext, gravity, placed);
     t.each(4, [&](long part) {  // the composites, each of the four sums on its own thread
+      RBD_UNROLL
       for (int i = m.nb - 1; i >= 0; --i) {
         const int p = m.body[i].parent;
         if (p < 0) continue;

@@ -84,6 +84,7 @@ RBD_HD void world_placements_team(const Team& t, const ModelView<S>& m, Workspac
                                   bool with_subspace, F&& then_each) {
   t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
   t.one([&] {
+    RBD_UNROLL
     for (int i = 0; i < m.nb; ++i) {
       const int p = m.body[i].parent;
       w.X_world[i] = p >= 0 ? w.X_world[p] * w.X_parent[i] : w.X_parent[i];

@@ -15,6 +15,7 @@
 // it passes is the same robot's and is not read.
 #pragma once
 
+#include "rbdkit/codegen/robot_model.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
 
@@ -29,18 +30,10 @@ struct Entry {
   ops::Kernel<double> run;
 };
 
-// the robot R's bodies as a constant table, filled at compile time by its bodies<double>
-template <class R> struct BodyTable {
-  BodyDesc<double> body[R::nb];
-  constexpr BodyTable() : body{} { R::template bodies<double>(body); }
-};
-template <class R> inline constexpr BodyTable<R> kBodies{};
-
-// Op::run on the robot R's constant table in place of the passed view
+// Op::run on the robot R's constant table in place of the passed view (codegen/robot_model.hpp)
 template <class R, class Op>
-bool kernel(const ModelView<double>&, Workspace<double>& w, const ops::OpArgs<double>& a) {
-  const ModelView<double> m{R::nb, R::nq, R::nv, R::has_mimic, kBodies<R>.body};
-  return Op::run(m, w, a);
+bool kernel(const ModelView<double>& view, Workspace<double>& w, const ops::OpArgs<double>& a) {
+  return Op::run(RobotModel<R>::view(view), w, a);
 }
 
 // the operations an instance compiles (Ops<...>::names), and its table for the robot R

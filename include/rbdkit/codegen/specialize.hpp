@@ -33,6 +33,10 @@ struct SpecializeOptions {
   // the folder holding rbdkit/ (its headers; "": the source tree this library was built from)
   std::string include_dir;
   std::string flags = "-O3 -march=native";
+  // a CUDA instance's compiler for the real kernels ("": $CUDACXX, else nvcc on the PATH, else
+  // /usr/local/cuda/bin/nvcc) and its flags
+  std::string cuda_compiler;
+  std::string cuda_flags = "-O3 -arch=native -split-compile=0";  // (-split-compile=0: optimise on every core)
 };
 
 // a loaded instance (its library stays loaded while an instance refers to it)
@@ -50,5 +54,23 @@ std::shared_ptr<const Instance> load_instance(const Model& model, const Speciali
 ops::Kernel<double> instance_kernel(const Instance& instance, int op);
 // the library's path
 const std::string& instance_path(const Instance& instance);
+
+// ---- a CUDA instance (rbdkit/cuda/instance.cuh): the CUDA backend's kernels for the operations
+// single calls and trajectory optimisation use most, on the robot's constants. device: the real
+// kernels, compiled by nvcc for this machine's GPU (device_key, e.g. its name and compute capability,
+// is part of the cache key); else the interpret launches, compiled by the C++ compiler (interpret mode,
+// RBDKIT_CUDA_INTERPRET=1). Cached and checked as a CPU instance; throws std::runtime_error saying why
+// none could be made
+struct CudaInstance;
+std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const SpecializeOptions& options,
+                                                       bool device, const std::string& device_key = "");
+// the C++ source of model's CUDA instance
+std::string cuda_instance_source(const Model& model);
+// the instance's launch of registered operation `op` for one dtype (a cuda::Launcher<double> or
+// <float>), null where it has none; whether it holds real kernels; its CUDA runtime's device selection
+const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32);
+bool cuda_instance_device(const CudaInstance& instance);
+void cuda_instance_activate(const CudaInstance& instance, int device);
+const std::string& instance_path(const CudaInstance& instance);
 
 }  // namespace rbd

@@ -1,6 +1,6 @@
 // rbdkit/cuda/cuda_engine.hpp — the CUDA backend: every registered operation
 // (ops/registry.hpp) over a batch on a GPU, one thread per sample, float64 or
-// float32. Host only; the kernels are src/cuda/kernels.cuh.
+// float32. Host only; the kernels are rbdkit/cuda/kernels.cuh.
 //
 //   rbd::CudaEngine e(model, "float64");            // the device, or interpret mode
 //   e.run_op(op, call);                             // host arrays: copied in and out
@@ -42,6 +42,8 @@
 #include "rbdkit/parsers/model.hpp"
 
 namespace rbd {
+
+struct CudaInstance;  // codegen/specialize.hpp
 
 class CudaEngine {
  public:
@@ -102,6 +104,11 @@ class CudaEngine {
   // the registered operation `op` on call.B samples (arrays of the engine's
   // dtype): host arrays, or device arrays when device_arrays
   void run_op(int op, const ops::OpCall& call, bool device_arrays = false);
+  // the robot's compiled CUDA instance (codegen/specialize.hpp, load_cuda_instance; null: none): its
+  // kernels compute the operations it holds from now on, the generic ones the rest. Its kind must be
+  // the engine's (interpret launches for interpret mode, GPU kernels on a device): std::invalid_argument
+  void use_instance(std::shared_ptr<const CudaInstance> instance);
+  bool has_instance() const;
   // bytes of device memory to host memory, on the engine's stream (returns when done)
   void copy_to_host(void* dst, const void* device_src, size_t bytes);
 

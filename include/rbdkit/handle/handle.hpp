@@ -35,7 +35,9 @@
 //
 // specialize() loads the robot's compiled instance (codegen/specialize.hpp):
 // the float64 serial loop then runs its per-robot kernels for the operations
-// it has (the dynamics, M, M⁻¹, their first derivatives, the step).
+// it has (the dynamics, M, M⁻¹, their first derivatives, the step); on a
+// Backend::CUDA handle, the CUDA backend's kernels compiled on the robot's
+// constants (cuda/instance.cuh) for ID, M⁻¹, FD, ∇ID, ∇FD and the step's gradient.
 #pragma once
 
 #include <Eigen/Core>
@@ -128,12 +130,13 @@ class Handle {
 
   // ---- a compiled per-robot instance (codegen/specialize.hpp): compiled on first use (cached
   // after), then the serial loop (float64: one sample, or every call of a threads = 0 handle) runs
-  // its kernels for the operations it has. Returns whether it is in use; when it could not be made
-  // (no compiler, a failed compilation, a library that fails its checks, a float32 handle: the
-  // engine computes its every call, a CUDA handle: its kernels are the CUDA backend's), false,
-  // the generic kernels stay, and specialize_error() says why. Not while other calls run.
+  // its kernels for the operations it has; on a CUDA handle, the backend's kernels on the robot's
+  // constants (nvcc for a GPU, the C++ compiler for interpret mode; both dtypes). Returns whether it
+  // is in use; when it could not be made (no compiler, a failed compilation, a library that fails its
+  // checks, a CPU float32 handle: the engine computes its every call), false, the generic kernels
+  // stay, and specialize_error() says why. Not while other calls run.
   bool specialize(const SpecializeOptions& options = {});
-  bool specialized() const { return instance_ != nullptr; }
+  bool specialized() const { return instance_ != nullptr || cuda_instance_ != nullptr; }
   const std::string& specialize_error() const { return specialize_error_; }
   // the instance's library ("" when not specialized)
   std::string instance_library() const;
@@ -234,6 +237,7 @@ class Handle {
   Backend backend_ = Backend::CPU;
   std::unique_ptr<CudaEngine> cuda_;  // Backend::CUDA
   std::shared_ptr<const Instance> instance_;  // specialize(): the compiled per-robot kernels
+  std::shared_ptr<const CudaInstance> cuda_instance_;  // specialize() on a CUDA handle
   std::string specialize_error_;
 };
 

@@ -11,7 +11,7 @@
 // What a phase hands to the next goes through memory; a local variable
 // outside a phase must be the same on every thread. Team::cooperative says
 // whether phases really are split (the GPU's team kernels, and their
-// interpret-mode emulation: src/cuda/team_kernels.cuh) or run inline;
+// interpret-mode emulation: rbdkit/cuda/team_kernels.cuh) or run inline;
 // Team::threads how many threads share a phase.
 //
 // InlineTeam is one thread running every phase in order, with no barrier:

@@ -10,7 +10,7 @@
 //   Engine::run_op          the engine's routes (src/batch/engine/engine_impl.hpp)
 //   Handle::run             checks, the serial loop or the engine (src/handle/handle.cpp)
 //   rbdkit._core op calls   the Python bindings and their checks (python/src/bind_ops.cpp)
-//   the CUDA kernels        one thread per sample, and their interpret mode (src/cuda/kernels.cuh)
+//   the CUDA kernels        one thread per sample, and their interpret mode (rbdkit/cuda/kernels.cuh)
 //
 // Shapes below are per sample; every surface adds a leading batch axis B.
 #pragma once

@@ -58,7 +58,7 @@ int call_convention(const OpSpec& op, const OpCall& c);
 // joint): T = double (bounds kMaxInput, kMaxAngle) or float (kMaxInputF32,
 // kMaxAngleF32). Shapes are the caller's (the bindings check them).
 // values = false: the parameters and the outputs only, not the arrays' values
-// (device arrays: the CUDA kernels check those, inputs_ok in src/cuda/kernels.cuh)
+// (device arrays: the CUDA kernels check those, inputs_ok in rbdkit/cuda/kernels.cuh)
 template <typename T> void check_call(const Model& m, const OpSpec& op, const OpCall& c, bool values = true);
 
 // values (samples x n, float64) finite and of magnitude at most `bound`:

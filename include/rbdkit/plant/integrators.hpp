@@ -114,7 +114,7 @@ template <typename S> struct MujocoStep {
                                               S* scratch) {
     return mujoco_acceleration_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv, Fu, scratch);
   }
-  // (one thread: the team kernels run MuJoCo's convention serially, src/cuda/team_kernels.cuh)
+  // (one thread: the team kernels run MuJoCo's convention serially, rbdkit/cuda/team_kernels.cuh)
   template <typename Team>
   RBD_HD static bool acceleration_derivatives(const Team&, const ModelView<S>& m, Workspace<S>& w, const S* q,
                                               const S* v, const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv,

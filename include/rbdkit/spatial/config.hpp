@@ -21,6 +21,15 @@
 #else
 #define RBD_HD_INLINE inline
 #endif
+// a body or coordinate loop that nvcc unrolls whole where its trip count is a compile-time constant
+// (a per-robot instance's model: a robot's sizes and bodies as constants, cuda/instance.cuh), which
+// turns the bodies' joint types, parents and constants into immediates and keeps a chain's values in
+// registers; a loop over a view's run-time sizes is left as it is. The host compilers ignore it
+#if defined(__CUDACC__)
+#define RBD_UNROLL _Pragma("unroll")
+#else
+#define RBD_UNROLL
+#endif
 // a pointer through which nothing else in its scope reads or writes (lets
 // the compiler vectorise a loop over it); g++, clang and nvcc spell it alike
 #define RBD_RESTRICT __restrict__

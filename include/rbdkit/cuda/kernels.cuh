@@ -1,4 +1,4 @@
-// src/cuda/kernels.cuh — the CUDA backend's kernel source: one registered
+// rbdkit/cuda/kernels.cuh — the CUDA backend's kernel source: one registered
 // operation (ops/registry.hpp) over a batch, one thread per sample. The same
 // source compiles twice:
 //   nvcc (src/cuda/routes_<dtype>.cu)       a __global__ kernel per operation and dtype
@@ -170,14 +170,21 @@ RBD_HD void op_samples(const DeviceCall<T>& c, const ModelView<T>& m, long first
     op_sample<Op>(c, m, s, c.work_shared ? slot : c.work + static_cast<unsigned long>(s) * c.work_bytes);
 }
 
+// where a kernel's model comes from (its Model parameter): CallModel, the call's view with its bodies
+// in device memory (the generic kernels); or instance::RobotModel<R> (codegen/robot_model.hpp), a
+// robot's sizes and bodies as compile-time constants (a per-robot instance's kernels)
+struct CallModel {
+  template <typename T> RBD_HD static ModelView<T> view(const ModelView<T>& call) { return call; }
+};
+
 #if defined(__CUDACC__)
 // `bodies` is c.model.body, passed apart so that it can be declared read only
 // and unaliased for the kernel (a qualifier on a struct member is not honoured).
 // Dynamic shared memory: blockDim.x work slices when c.work_shared
-template <typename Op, typename T>
+template <typename Op, typename T, typename Model = CallModel>
 __global__ void op_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
   extern __shared__ __align__(16) unsigned char shared_work[];
-  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
+  const ModelView<T> m = Model::view(ModelView<T>{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies});
   op_samples<Op>(c, m, static_cast<long>(blockIdx.x) * blockDim.x + threadIdx.x,
                  static_cast<long>(gridDim.x) * blockDim.x, shared_work + threadIdx.x * c.work_bytes);
 }
@@ -220,10 +227,12 @@ constexpr int kThreadsPerBlock = 128;
 constexpr long kMaxBlocks = 65535;
 
 // Op's launch in interpret mode: the kernel's body for every (block, thread)
-template <typename Op, typename T> void interpret_op(const DeviceCall<T>& c, LaunchShape shape) {
+template <typename Op, typename T, typename Model = CallModel>
+void interpret_op(const DeviceCall<T>& c, LaunchShape shape) {
   const long stride = shape.blocks * shape.threads;
+  const ModelView<T> m = Model::view(c.model);
   emulate_launch(shape, [&](long b, int t, unsigned char* shared) {
-    op_samples<Op>(c, c.model, b * shape.threads + t, stride, shared ? shared + t * c.work_bytes : nullptr);
+    op_samples<Op>(c, m, b * shape.threads + t, stride, shared ? shared + t * c.work_bytes : nullptr);
   });
 }
 

@@ -1,4 +1,4 @@
-// src/cuda/team_kernels.cuh — cooperative kernels: a team of threads (one
+// rbdkit/cuda/team_kernels.cuh — cooperative kernels: a team of threads (one
 // block of kTeam) computes one sample, for the operations whose one-thread
 // chain is long (issue 17; docs/cuda.md, "Team kernels"). One GPU thread takes
 // 100 µs for iiwa's ∇FD and 1.6 ms for floating Atlas's, the dense product
@@ -30,7 +30,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "kernels.cuh"
+#include "rbdkit/cuda/kernels.cuh"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/model/team.hpp"
 #include "rbdkit/plant/integrators.hpp"
@@ -306,11 +306,11 @@ RBD_HD void team_sample(Team t, const DeviceCall<T>& c, const ModelView<T>& m, l
 
 #if defined(__CUDACC__)
 // a block per sample, over a grid-stride loop; dynamic shared memory: the sample's work slice when
-// c.work_shared
-template <typename Op, typename T>
+// c.work_shared; Model: where the model comes from (kernels.cuh's CallModel)
+template <typename Op, typename T, typename Model = CallModel>
 __global__ void __launch_bounds__(kTeam) team_kernel(DeviceCall<T> c, const BodyDesc<T>* __restrict__ bodies) {
   extern __shared__ __align__(16) unsigned char shared_work[];
-  const ModelView<T> m{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies};
+  const ModelView<T> m = Model::view(ModelView<T>{c.model.nb, c.model.nq, c.model.nv, c.model.has_mimic, bodies});
   if constexpr (TeamOp<Op>::available) {
     const BlockTeam t;
     for (long s = blockIdx.x; s < c.B; s += gridDim.x)
@@ -320,16 +320,18 @@ __global__ void __launch_bounds__(kTeam) team_kernel(DeviceCall<T> c, const Body
 #endif
 
 // Op's team launch in interpret mode: each block's samples, a team at a time
-template <typename Op, typename T> void interpret_team_op(const DeviceCall<T>& c, LaunchShape shape) {
+template <typename Op, typename T, typename Model = CallModel>
+void interpret_team_op(const DeviceCall<T>& c, LaunchShape shape) {
   if constexpr (!TeamOp<Op>::available) {
     (void)c, (void)shape;
     throw std::logic_error(std::string(Op::spec.name) + ": a team launch of an operation without a team kernel");
   } else {
     const SerialTeam t;
+    const ModelView<T> m = Model::view(c.model);
     emulate_launch(LaunchShape{shape.blocks, 1, shape.shared_bytes, shape.shared_limit},
                    [&](long b, int, unsigned char* shared) {
                      for (long s = b; s < c.B; s += shape.blocks)
-                       team_sample<Op>(t, c, c.model, s,
+                       team_sample<Op>(t, c, m, s,
                                        c.work_shared ? shared : c.work + static_cast<unsigned long>(s) * c.work_bytes);
                    });
   }

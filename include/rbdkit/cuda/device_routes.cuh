@@ -1,4 +1,4 @@
-// src/cuda/device_routes.cuh — the real launches of every registered
+// rbdkit/cuda/device_routes.cuh — the real launches of every registered
 // operation for one dtype: op_kernel<Op, T> (kernels.cuh) on the engine's
 // stream, instantiated in src/cuda/routes_<dtype>.cu
 #pragma once
@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "device.hpp"
+#include "rbdkit/cuda/team_kernels.cuh"
 
 namespace rbd {
 namespace cuda {
@@ -24,21 +24,24 @@ template <typename K> void allow_shared(K kernel, LaunchShape shape) {
                              " bytes of shared memory per block: " + cudaGetErrorString(e));
 }
 
-template <typename Op, typename T> void device_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
+// Model: where the kernels' model comes from (kernels.cuh's CallModel, or a per-robot instance's)
+template <typename Op, typename T, typename Model = CallModel>
+void device_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
   const dim3 grid(static_cast<unsigned>(shape.blocks)), block(shape.threads);
   if constexpr (TeamOp<Op>::available) {
     if (shape.team) {  // (the engine asks for a team only where Op has one)
-      allow_shared(team_kernel<Op, T>, shape);
-      team_kernel<Op, T><<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
+      allow_shared(team_kernel<Op, T, Model>, shape);
+      team_kernel<Op, T, Model>
+          <<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
       return;
     }
   }
-  allow_shared(op_kernel<Op, T>, shape);
-  op_kernel<Op, T><<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
+  allow_shared(op_kernel<Op, T, Model>, shape);
+  op_kernel<Op, T, Model><<<grid, block, shape.shared_bytes, static_cast<cudaStream_t>(stream)>>>(c, c.model.body);
 }
 
-template <typename T, typename... Op> const Launcher<T>* device_table(ops::OpList<Op...>) {
-  static const Launcher<T> table[] = {&device_launch<Op, T>...};
+template <typename T, typename Model = CallModel, typename... Op> const Launcher<T>* device_table(ops::OpList<Op...>) {
+  static const Launcher<T> table[] = {&device_launch<Op, T, Model>...};
   return table;
 }
 
