@@ -57,8 +57,9 @@ BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 # the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
 TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
             "integrator_gradient")
-# the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops: the same six)
-INSTANCE_OPS = TEAM_OPS
+# the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops)
+INSTANCE_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
+                "forward_dynamics_gradient", "integrator_gradient")
 
 
 def device_module(choice="any"):
@@ -116,8 +117,12 @@ def scaled_difference(a, b):
     """the largest |a - b| over the outputs, each relative to its own scale (device arrays or NumPy)"""
     pairs = zip(a, b) if isinstance(a, tuple) else [(a, b)]
     worst = 0.0
+    def host(v):  # a PyTorch tensor, a CuPy array or NumPy
+        v = v.cpu() if hasattr(v, "cpu") else v.get() if hasattr(v, "get") else v
+        return np.asarray(v, dtype=np.float64)
+
     for x, y in pairs:
-        x, y = (np.asarray(v.cpu() if hasattr(v, "cpu") else v, dtype=np.float64) for v in (x, y))
+        x, y = host(x), host(y)
         worst = max(worst, float(np.max(np.abs(x - y))) / max(1.0, float(np.max(np.abs(y)))))
     return worst
 
@@ -246,8 +251,7 @@ def main():
                 spec = rbdkit.Handle(model, backend="cuda", dtype=dtype, specialize=True)
                 notes.append(f"{robot}{'_floating' if floating else ''} {dtype}: the instance in "
                              f"{time.perf_counter() - t0:.1f} s ({'in use' if spec.specialized else 'NOT in use'})")
-                if spec.specialized:
-                    forced["specialized"] = spec
+                forced["specialized"] = spec if spec.specialized else None  # ("-" when it could not be made)
             if gpu is None:
                 gpu = cu.device
                 out(f"# rbdkit CUDA backend: µs per knot point on {gpu} "
@@ -282,7 +286,7 @@ def main():
                             cols += " - |"  # (no team kernel: both columns would time the same kernel)
                             continue
                         if where == "specialized":
-                            if op not in INSTANCE_OPS:
+                            if h is None or op not in INSTANCE_OPS:
                                 cols += " - |"
                                 continue
                             worst[(name, dtype)] = max(worst.get((name, dtype), 0.0),

@@ -258,13 +258,12 @@ std::shared_ptr<CudaInstance> open_cuda_instance(const fs::path& library, const 
                              std::to_string(cuda::instance::kAbi));
   if (d->layout != cuda::instance::kLayout)
     throw std::runtime_error("specialize: " + inst->path + " was compiled with other rbdkit headers than this library's");
-  if (d->nb != model.nb() || d->nq != model.nq || d->nv != model.nv)
-    throw std::runtime_error("specialize: " + inst->path + " is another robot's (nb, nq, nv = " + std::to_string(d->nb) +
-                             ", " + std::to_string(d->nq) + ", " + std::to_string(d->nv) + ")");
+  inst->description = d;
+  const std::string other = cuda_instance_mismatch(*inst, model);
+  if (!other.empty()) throw std::runtime_error("specialize: " + inst->path + " " + other);
   if ((d->device != 0) != device)
     throw std::runtime_error("specialize: " + inst->path + (device ? " holds interpret launches, not GPU kernels"
                                                                     : " holds GPU kernels, not interpret launches"));
-  inst->description = d;
   inst->f64.assign(ops::op_table().size(), nullptr);
   inst->f32.assign(ops::op_table().size(), nullptr);
   for (int i = 0; i < d->n_ops; ++i) {
@@ -336,6 +335,14 @@ std::string cuda_instance_source(const Model& model) {
 std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const SpecializeOptions& options,
                                                        bool device, const std::string& device_key) {
   if (model.nb() == 0) throw std::runtime_error("specialize: the model has no moving body");
+  if (device && device_key.empty())
+    throw std::invalid_argument("load_cuda_instance: device_key: expected the GPU's name (a key of the cache), got ''");
+  // the bodies' __constant__ tables, both dtypes, within the 64 KiB of constant memory (with room for the rest)
+  const size_t table_bytes = static_cast<size_t>(model.nb()) * (sizeof(BodyDesc<double>) + sizeof(BodyDesc<float>));
+  if (device && table_bytes > 60 * 1024)
+    throw std::runtime_error("specialize: the robot's " + std::to_string(model.nb()) + " bodies take " +
+                             std::to_string(table_bytes) +
+                             " bytes as constant tables, past the GPU's 64 KiB of constant memory: the generic kernels serve it");
   const fs::path include_dir = checked_include_dir(options);
   const Build build = device ? Build{nvcc_compiler(options), kNvccFixedFlags, options.cuda_flags, ".cu"}
                              : Build{cxx_compiler(options), kFixedFlags, options.flags, ".cpp"};
@@ -360,6 +367,15 @@ const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32)
   return op >= 0 && op < static_cast<int>(t.size()) ? t[op] : nullptr;
 }
 bool cuda_instance_device(const CudaInstance& instance) { return instance.description->device != 0; }
+std::string cuda_instance_mismatch(const CudaInstance& instance, const Model& model) {
+  const cuda::instance::Description& d = *instance.description;
+  const int general = model.general_path() ? 1 : 0;
+  if (d.nb == model.nb() && d.nq == model.nq && d.nv == model.nv && d.has_mimic == general) return "";
+  return "is another robot's (nb, nq, nv, general paths = " + std::to_string(d.nb) + ", " + std::to_string(d.nq) +
+         ", " + std::to_string(d.nv) + ", " + std::to_string(d.has_mimic) + "; the model's " +
+         std::to_string(model.nb()) + ", " + std::to_string(model.nq) + ", " + std::to_string(model.nv) + ", " +
+         std::to_string(general) + ")";
+}
 void cuda_instance_activate(const CudaInstance& instance, int device) { instance.description->activate(device); }
 const std::string& instance_path(const CudaInstance& instance) { return instance.path; }
 

@@ -479,8 +479,13 @@ void CudaEngine::use_instance(std::shared_ptr<const CudaInstance> instance) {
     throw std::invalid_argument(std::string("use_instance: ") + instance_path(*instance) + " holds " +
                                 (impl_->interpret ? "GPU kernels; this engine runs in interpret mode"
                                                   : "interpret launches; this engine runs on a GPU"));
+  const std::string other = instance ? cuda_instance_mismatch(*instance, impl_->model) : "";
+  if (!other.empty()) throw std::invalid_argument("use_instance: " + instance_path(*instance) + " " + other);
   impl_->instance = std::move(instance);
 }
-bool CudaEngine::has_instance() const { return impl_->instance != nullptr; }
+bool CudaEngine::has_instance() const {
+  std::lock_guard<std::mutex> lk(impl_->call);
+  return impl_->instance != nullptr;
+}
 
 }  // namespace rbd

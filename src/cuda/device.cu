@@ -66,11 +66,11 @@ struct CudaDevice : Device {
   }
   void launch(int op, const DeviceCall<double>& c, LaunchShape shape, void* s) override {
     device_routes<double>()[op](c, shape, s);
-    check(cudaPeekAtLastError(), "kernel launch");
+    check(cudaGetLastError(), "kernel launch");
   }
   void launch(int op, const DeviceCall<float>& c, LaunchShape shape, void* s) override {
     device_routes<float>()[op](c, shape, s);
-    check(cudaPeekAtLastError(), "kernel launch");
+    check(cudaGetLastError(), "kernel launch");
   }
   void synchronize(void* s) override { check(cudaStreamSynchronize(static_cast<cudaStream_t>(s)), "kernel"); }
   // a blocking stream: it waits for the legacy default stream, where PyTorch and CuPy work by default

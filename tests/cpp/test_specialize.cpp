@@ -147,6 +147,14 @@ TEST(Specialize, InterpretModeInstanceAgreesWithTheGenericKernels) {
   EXPECT_TRUE(engine.has_instance());
   engine.use_instance(nullptr);
   EXPECT_FALSE(engine.has_instance());
+  try {  // another robot's instance: the engine's work sizes are not the ones its kernels carve
+    engine.use_instance(rbd::load_cuda_instance(Model::from_urdf_file(RBDKIT_ROBOTS_DIR "/hyq.urdf", true), o, false));
+    ADD_FAILURE() << "use_instance took another robot's instance";
+  } catch (const std::invalid_argument& x) {
+    EXPECT_NE(std::string(x.what()).find("another robot's"), std::string::npos) << x.what();
+  }
+  EXPECT_FALSE(engine.has_instance());
+  EXPECT_THROW(rbd::load_cuda_instance(iiwa, o, /*device=*/true, ""), std::invalid_argument);  // (the GPU unnamed)
   // (the "CUDA compiler": a script that hands nvcc's command to the C++ compiler, so the library built
   // on the device path holds interpret launches)
   rbd::SpecializeOptions fake = o;

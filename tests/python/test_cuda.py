@@ -138,6 +138,7 @@ def test_specialized_handle_agrees_with_the_generic_one(interpret, monkeypatch):
             for a, b in zip(got if isinstance(got, tuple) else [got], want if isinstance(want, tuple) else [want]):
                 assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(b))), (op, kernel)
 
+
 def test_errors_name_the_samples(interpret):
     h = rbdkit.Handle(rbdkit.robots.load("iiwa"), backend="cuda")
     q = np.zeros((6, 7))

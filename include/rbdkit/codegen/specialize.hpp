@@ -4,7 +4,8 @@
 // An instance is the robot's generated header (codegen/generate.hpp) and the
 // per-sample kernels of the registered operations single calls use most
 // (codegen/instance.hpp), compiled by the system's C++ compiler into a shared
-// library and loaded with dlopen. Its kernels are the registry's own, run on
+// library and loaded with dlopen. A CUDA instance (below) is the same for
+// the CUDA backend's kernels. Its kernels are the registry's own, run on
 // the robot's bodies written as literals, so the compiler sees every joint
 // type, parent and size as a constant. A handle's float64 serial loop (one
 // sample, or every call of a handle with threads = 0) then runs them instead
@@ -57,17 +58,22 @@ const std::string& instance_path(const Instance& instance);
 
 // ---- a CUDA instance (rbdkit/cuda/instance.cuh): the CUDA backend's kernels for the operations
 // single calls and trajectory optimisation use most, on the robot's constants. device: the real
-// kernels, compiled by nvcc for this machine's GPU (device_key, e.g. its name and compute capability,
-// is part of the cache key); else the interpret launches, compiled by the C++ compiler (interpret mode,
-// RBDKIT_CUDA_INTERPRET=1). Cached and checked as a CPU instance; throws std::runtime_error saying why
-// none could be made
+// kernels, compiled by nvcc (cuda_compiler, cuda_flags) for this machine's GPU (device_key, the GPU's
+// name, is part of the cache key: required); else the interpret launches, compiled by the C++
+// compiler (compiler, flags; interpret mode, RBDKIT_CUDA_INTERPRET=1). Cached and checked as a CPU
+// instance; throws std::runtime_error saying why none could be made (a robot whose bodies do not fit
+// the GPU's constant memory, past about 140 bodies, among them)
 struct CudaInstance;
 std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const SpecializeOptions& options,
                                                        bool device, const std::string& device_key = "");
+// "" when the instance is model's robot (its sizes and its general paths), else what differs (the
+// engine's work sizes are the model's, the instance's kernels carve them for its own robot)
+std::string cuda_instance_mismatch(const CudaInstance& instance, const Model& model);
 // the C++ source of model's CUDA instance
 std::string cuda_instance_source(const Model& model);
 // the instance's launch of registered operation `op` for one dtype (a cuda::Launcher<double> or
-// <float>), null where it has none; whether it holds real kernels; its CUDA runtime's device selection
+// <float>, rbdkit/cuda/kernels.cuh), null where it has none; whether it holds GPU kernels (else
+// interpret launches); the device selection in its own CUDA runtime (throws std::runtime_error)
 const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32);
 bool cuda_instance_device(const CudaInstance& instance);
 void cuda_instance_activate(const CudaInstance& instance, int device);

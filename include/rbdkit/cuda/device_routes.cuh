@@ -1,6 +1,7 @@
 // rbdkit/cuda/device_routes.cuh — the real launches of every registered
 // operation for one dtype: op_kernel<Op, T> (kernels.cuh) on the engine's
-// stream, instantiated in src/cuda/routes_<dtype>.cu
+// stream, instantiated in src/cuda/routes_<dtype>.cu (and, on a robot's
+// constants, in a per-robot instance: cuda/instance.cuh)
 #pragma once
 
 #include <cuda_runtime.h>

@@ -58,7 +58,7 @@ constexpr unsigned long long kLayout = fingerprint(static_cast<Ops*>(nullptr));
 struct Description {
   int abi;                    // kAbi
   unsigned long long layout;  // kLayout
-  int nb, nq, nv;             // the robot's
+  int nb, nq, nv, has_mimic;  // the robot's (has_mimic: ModelView's, the general paths)
   int device;                 // 1: real kernels (nvcc); 0: interpret launches (the host compiler)
   void (*activate)(int);      // makes CUDA device k the current one of the instance's runtime (before a launch)
   int n_ops;
@@ -78,7 +78,7 @@ inline void activate(int device) {
 }
 template <class R, typename Op, typename T> void launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
   device_launch<Op, T, rbd::instance::RobotModel<R>>(c, shape, stream);
-  const cudaError_t e = cudaPeekAtLastError();
+  const cudaError_t e = cudaGetLastError();  // (read and cleared: a later launch reports its own)
   if (e != cudaSuccess)
     throw std::runtime_error(std::string("backend='cuda' (the robot's instance): kernel launch: ") +
                              cudaGetErrorString(e));
@@ -113,6 +113,7 @@ template <class R, typename T, class... Op> const Launcher<T>* table(ops::OpList
                                                        R::nb,                                                     \
                                                        R::nq,                                                     \
                                                        R::nv,                                                     \
+                                                       R::has_mimic,                                              \
                                                        RBDKIT_CUDA_INSTANCE_DEVICE,                               \
                                                        &rbd::cuda::instance::activate,                            \
                                                        N::count,                                                  \

@@ -1,6 +1,7 @@
 // rbdkit/cuda/interpret_routes.hpp — the interpret launches of every registered
 // operation for one dtype, instantiated in src/cuda/interpret_<dtype>.cpp (a
-// file per dtype, so that a parallel build compiles them side by side)
+// file per dtype, so that a parallel build compiles them side by side), and on a
+// robot's constants in a per-robot instance for interpret mode (cuda/instance.cuh)
 #pragma once
 
 #include "rbdkit/cuda/team_kernels.cuh"

@@ -5,6 +5,7 @@
 //   the host compiler (src/cuda/interpret_<dtype>.cpp)  the same body under an emulated
 //                                            launch: blocks and threads run serially
 //                                            (RBDKIT_CUDA_INTERPRET=1, docs/cuda.md)
+// and both again in a per-robot instance (cuda/instance.cuh), on the robot's constants.
 // A kernel is written as "for each sample this thread owns" over a grid-stride
 // loop; a kernel with barriers is written as phases of such loops, which the
 // emulation runs for every thread of a block before the next one (the team
