@@ -275,6 +275,21 @@ std::shared_ptr<CudaInstance> open_cuda_instance(const fs::path& library, const 
   return inst;
 }
 
+// the library of an instance of kind I: the one this process loaded (handles on the same model share
+// it), else the cached file, compiled first when there is none; open() loads and checks it
+template <class I, class Open>
+std::shared_ptr<I> load_cached(const fs::path& library, const std::string& source, const Build& build,
+                               const fs::path& include_dir, Open&& open) {
+  static std::mutex lock;  // (one per kind)
+  static std::map<std::string, std::weak_ptr<I>> loaded;
+  std::lock_guard<std::mutex> lk(lock);
+  if (auto inst = loaded[library.string()].lock()) return inst;
+  if (!fs::is_regular_file(library)) compile(source, build, include_dir, library);
+  std::shared_ptr<I> inst = open();
+  loaded[library.string()] = inst;
+  return inst;
+}
+
 std::string robot_stem(const Model& model) {  // the robot's name as a file name
   std::string stem;
   for (char c : model.name) stem += std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' ? c : '_';
@@ -315,16 +330,7 @@ std::shared_ptr<const Instance> load_instance(const Model& model, const Speciali
   const std::string source = instance_source(model);
   const std::string key = cache_key(source, build, include_dir, "");
   const fs::path library = cache_folder(options) / (robot_stem(model) + "-" + key + ".so");
-
-  // one load per library and process: handles on the same model share it
-  static std::mutex lock;
-  static std::map<std::string, std::weak_ptr<Instance>> loaded;
-  std::lock_guard<std::mutex> lk(lock);
-  if (auto inst = loaded[library.string()].lock()) return inst;
-  if (!fs::is_regular_file(library)) compile(source, build, include_dir, library);
-  auto inst = open_instance(library, model);
-  loaded[library.string()] = inst;
-  return inst;
+  return load_cached<Instance>(library, source, build, include_dir, [&] { return open_instance(library, model); });
 }
 
 std::string cuda_instance_source(const Model& model) {
@@ -352,14 +358,8 @@ std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const
       "cuda instance " + std::to_string(cuda::instance::kAbi) + (device ? " device " + device_key : " interpret"));
   const fs::path library =
       cache_folder(options) / (robot_stem(model) + (device ? "-cuda-" : "-cuda-interpret-") + key + ".so");
-  static std::mutex lock;
-  static std::map<std::string, std::weak_ptr<CudaInstance>> loaded;
-  std::lock_guard<std::mutex> lk(lock);
-  if (auto inst = loaded[library.string()].lock()) return inst;
-  if (!fs::is_regular_file(library)) compile(source, build, include_dir, library);
-  auto inst = open_cuda_instance(library, model, device);
-  loaded[library.string()] = inst;
-  return inst;
+  return load_cached<CudaInstance>(library, source, build, include_dir,
+                                   [&] { return open_cuda_instance(library, model, device); });
 }
 
 const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32) {
