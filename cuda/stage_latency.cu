@@ -172,6 +172,17 @@ __global__ void team_stages(ModelView<S> call_model, const S* q, const S* qd, co
   }
 }
 
+// one table row: a stage's cycles and µs in each of `cols` columns (cycles[c * stride]; negative: not run)
+void print_row(const char* name, const long long* cycles, int stride, int cols, int clock_khz) {
+  std::printf("| %s |", name);
+  for (int c = 0; c < cols; ++c) {
+    const long long n = cycles[c * stride];
+    if (n < 0) std::printf(" — | — |");
+    else std::printf(" %lld | %.2f |", n, n / (clock_khz * 1e-3));
+  }
+  std::printf("\n");
+}
+
 // Src: the kernels' model, the view's (cuda::CallModel) or a generated robot's constants
 // (instance::RobotModel, the per-robot instances' kernels)
 template <typename S, typename Src = cuda::CallModel> void run(const Model& model, const char* label, int reps) {
@@ -225,16 +236,7 @@ template <typename S, typename Src = cuda::CallModel> void run(const Model& mode
     CHECK_CUDA(cudaDeviceSynchronize());
     CHECK_CUDA(cudaMemcpy(cyc[col], d_cycles, sizeof(cyc[col]), cudaMemcpyDeviceToHost));
   }
-  for (int k = 0; k < kStages; ++k) {
-    std::printf("| %s |", kStageNames[k]);
-    for (int col = 0; col < 3; ++col) {
-      if (cyc[col][k] < 0)
-        std::printf(" — | — |");
-      else
-        std::printf(" %lld | %.2f |", cyc[col][k], cyc[col][k] / (clock_khz * 1e-3));
-    }
-    std::printf("\n");
-  }
+  for (int k = 0; k < kStages; ++k) print_row(kStageNames[k], &cyc[0][k], kStages, 3, clock_khz);
   // the team kernels' phases: a block of kTeam threads, the slice (workspace, then the team's extra)
   // in shared memory where it fits (through a generic pointer, and known to the compiler)
   const unsigned long team_bytes = ws_bytes + ((aba_derivatives_team_bytes<S>(nb, nv) + 255ul) & ~255ul);
@@ -262,16 +264,7 @@ template <typename S, typename Src = cuda::CallModel> void run(const Model& mode
   std::printf("\n%s, %s, a team of %d threads, slice %lu bytes in %s memory\n"
               "| team phase | cycles | µs | shared, known to the compiler: cycles | µs |\n|---|---:|---:|---:|---:|\n",
               label, sizeof(S) == 8 ? "float64" : "float32", cuda::kTeam, team_bytes, team_shared ? "shared" : "global");
-  for (int k = 0; k < kTeamStages; ++k) {
-    std::printf("| %s |", kTeamStageNames[k]);
-    for (int known = 0; known < 2; ++known) {
-      if (tc[known][k] < 0)
-        std::printf(" — | — |");
-      else
-        std::printf(" %lld | %.2f |", tc[known][k], tc[known][k] / (clock_khz * 1e-3));
-    }
-    std::printf("\n");
-  }
+  for (int k = 0; k < kTeamStages; ++k) print_row(kTeamStageNames[k], &tc[0][k], kTeamStages, 2, clock_khz);
   cudaFree(d_bodies), cudaFree(d_q), cudaFree(d_qd), cudaFree(d_tau), cudaFree(d_sink), cudaFree(d_cycles),
       cudaFree(d_ws), cudaFree(d_team_ws), cudaFree(d_team_cycles);
 }

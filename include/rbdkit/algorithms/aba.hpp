@@ -195,12 +195,10 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
 // joint once an algorithm has reported a mass matrix that is not positive
 // definite. writes w.X_parent, w.IA, w.U, w.Dinv
 template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Workspace<S>& w, const S* q) {
-  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     w.X_parent[i] = body_transform(m.body[i], q);
     w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
   }
-  RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     Force<S>* U = w.U + 6 * i;
@@ -218,7 +216,6 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
   S* M = w.dense;
   crba(m, w, q, M);
   rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, qdd);  // qdd <- c
-  RBD_UNROLL
   for (int k = 0; k < m.nv; ++k) qdd[k] = tau[k] - qdd[k];
   if (!cholesky(M, m.nv)) return false;
   cholesky_solve(M, m.nv, qdd);

@@ -56,7 +56,6 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
 template <typename S> RBD_HD bool tree_sparse_product_pays(const ModelView<S>& m) {
   if (m.has_mimic) return false;
   long nnz = 0;  // Σ over DoFs c of the DoFs on c's root paths: its ancestors' and its subtree's
-  RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     long above = 0;
     for (int j = m.body[i].parent; j >= 0; j = m.body[j].parent) above += m.body[j].nv;

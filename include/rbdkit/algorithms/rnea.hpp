@@ -53,7 +53,6 @@ RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q
 
 // backward pass: tau_i = Sᵀ f_i, f_λ += X f_i    writes tau (nv), w.f
 template <typename S> RBD_HD void rnea_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* tau) {
-  RBD_UNROLL
   for (int k = 0; k < m.nv; ++k) tau[k] = S(0);
   RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
