@@ -1,12 +1,14 @@
 // The batched CPU engine (engine.hpp) and its SIMD pack (simd.hpp):
 //   * Pack<T, W>: lane-wise arithmetic, functions and branch helpers equal
-//     the scalar ones lane by lane (sin and cos within an ulp of libm);
+//     the scalar ones lane by lane (sin and cos within an ulp of libm, and
+//     equal to the scalar ssincos bit for bit);
 //   * every operation, on every model case: results bit-identical for
 //     threads 1, 2, 3 and B in {1, 3, 7, 16, 65}; float64 equal to the
 //     single-sample functions (rnea, crba, minv, aba, rnea_derivatives,
-//     aba_derivatives, integrator_step, integrator_gradient) to 1e-12 (M⁻¹
-//     and ∇FD: 1e-12·cond₁(M)/1e4 where cond₁(M) > 1e4, the amplification of
-//     the ulp-level differences of the vectorised sin/cos);
+//     aba_derivatives, integrator_step, integrator_gradient) bit for bit
+//     where the scalar code fuses no multiply-add (x86-64 without FMA), else
+//     to 1e-12 (M⁻¹ and ∇FD: 1e-12·cond₁(M)/1e4 where cond₁(M) > 1e4, the
+//     amplification of fused roundings);
 //     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
 //     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
 //   * bad arguments (threads, dtype, array type, B, integrator type, dt);
@@ -32,6 +34,7 @@
 #include "rbdkit/batch/engine.hpp"
 #include "rbdkit/batch/simd.hpp"
 #include "rbdkit/plant/integrators.hpp"
+#include "rbdkit/spatial/dual.hpp"
 #include "test_models.hpp"
 
 using rbd::Engine;
@@ -108,10 +111,60 @@ TEST(Pack, SinCosWithinUlps) {
       worst = std::max({worst, std::fabs(s[l] - std::sin(x[l])), std::fabs(c[l] - std::cos(x[l]))});
       worst_f = std::max({worst_f, std::fabs(double(sf[l]) - std::sin(double(xf[l]))),
                           std::fabs(double(cf[l]) - std::cos(double(xf[l])))});
+      // a lane is the scalar function's result, bit for bit (the serial loop and the packs agree)
+      double s1, c1;
+      float sf1, cf1;
+      rbd::ssincos(x[l], s1, c1);
+      rbd::ssincos(xf[l], sf1, cf1);
+      ASSERT_EQ(s[l], s1) << x[l];
+      ASSERT_EQ(c[l], c1) << x[l];
+      ASSERT_EQ(sf[l], sf1) << xf[l];
+      ASSERT_EQ(cf[l], cf1) << xf[l];
     }
   }
   EXPECT_LE(worst, 1e-15);
   EXPECT_LE(worst_f, 6e-8);
+}
+
+// the scalar sin and cos (every joint's rotation on the host) against libm: every quadrant, both
+// signs, the rounding ties of x·2/π, multiples of π/2 and π/4, tiny and large |x| (the libm
+// fallback past 1e5), inf and NaN; ssin and scos are its two halves, and dual numbers carry cos and
+// -sin as derivatives
+TEST(Scalar, SinCosWithinUlps) {
+  std::vector<double> xs = {0.0, -0.0, 1e-300, -1e-300, 1e-8, 0.5, -0.5, 1e5, -1e5, 1.0000001e5, 3e7, -1e300};
+  for (int k = -40; k <= 40; ++k)
+    for (double f : {0.0, 0.25, 0.5, 0.75}) {
+      const double x = (k + f) * 1.5707963267948966;
+      xs.push_back(x), xs.push_back(std::nextafter(x, 1e9)), xs.push_back(std::nextafter(x, -1e9));
+    }
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-60, 60);
+  for (int it = 0; it < 100000; ++it) xs.push_back(U(rng) * (it % 5 == 0 ? 1000.0 : 1.0));
+  double worst = 0, worst_f = 0;
+  for (const double x : xs) {
+    double s, c;
+    rbd::ssincos(x, s, c);
+    worst = std::max({worst, std::fabs(s - std::sin(x)), std::fabs(c - std::cos(x))});
+    ASSERT_EQ(rbd::ssin(x), s);
+    ASSERT_EQ(rbd::scos(x), c);
+    float sf, cf;
+    const float xf = static_cast<float>(x);
+    rbd::ssincos(xf, sf, cf);
+    worst_f = std::max({worst_f, std::fabs(double(sf) - std::sin(double(xf))), std::fabs(double(cf) - std::cos(double(xf)))});
+  }
+  EXPECT_LE(worst, 1e-15);
+  EXPECT_LE(worst_f, 6e-8);
+  for (const double bad : {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()}) {
+    double s, c;
+    rbd::ssincos(bad, s, c);
+    EXPECT_TRUE(std::isnan(s) && std::isnan(c));
+  }
+  rbd::Dual<double> s, c;
+  rbd::ssincos(rbd::Dual<double>{0.7, 2.0}, s, c);
+  EXPECT_NEAR(s.v, std::sin(0.7), 1e-16);
+  EXPECT_NEAR(s.d, 2.0 * std::cos(0.7), 1e-15);
+  EXPECT_NEAR(c.v, std::cos(0.7), 1e-16);
+  EXPECT_NEAR(c.d, -2.0 * std::sin(0.7), 1e-15);
 }
 
 // ------------------------------------------------------------------ engine
@@ -269,13 +322,20 @@ TEST_P(EngineModels, DeterministicAndEqualToSingleSample) {
           ASSERT_EQ(std::memcmp(&part[k], &full[k], sizeof(double)), 0)
               << "threads " << e->threads() << " B " << B << " value " << k;
       }
-    // equal to the single-sample functions; the engine's sin and cos are within
-    // an ulp of libm's, and M⁻¹ amplifies such input differences by up to cond(M)
+    // equal to the single-sample functions: bit for bit where this file's scalar code fuses no
+    // multiply-add (x86-64 without FMA, CI's build: the engine's lanes do the same IEEE operations,
+    // sin and cos included); elsewhere to 1e-12, and M⁻¹ amplifies a fused rounding by up to cond(M)
     for (long b = 0; b < Bmax; b += 8) {
       const std::vector<double> ref = reference(m, op, s, b);
       double tol = 1e-12;
       if (op == 2 || op == 5) tol *= std::max(1.0, cond1(reference(m, 1, s, b), reference(m, 2, s, b), m.nv) / 1e4);
       EXPECT_LE(max_rel_err(sample_of(full, w, b), ref), tol) << "sample " << b;
+#if defined(__x86_64__) && !defined(__FMA__)
+      const std::vector<double> got = sample_of(full, w, b);
+      ASSERT_EQ(got.size(), ref.size());
+      for (size_t k = 0; k < ref.size(); ++k)
+        ASSERT_EQ(std::memcmp(&got[k], &ref[k], sizeof(double)), 0) << "sample " << b << " value " << k;
+#endif
     }
   }
 }

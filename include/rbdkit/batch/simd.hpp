@@ -77,33 +77,18 @@ template <int W> inline Pack<float, W> ssqrt(const Pack<float, W>& a) {
   for (int l = 0; l < W; ++l) r.v[l] = __builtin_sqrtf(a.v[l]);
   return r;
 }
-// ---- sin and cos, vectorised: x = k·π/2 + r (Cody–Waite, π/2 in three
-// parts, k·part exact for |k| < 2²⁰), then Taylor series of sin and cos on
-// |r| ≤ π/4 (9 terms: the remainder is below 1e-19) and the quadrant's
-// sign and swap. Within about an ulp of libm; lanes with |x| > 1e5 use
-// libm. float lanes are computed in double and rounded.
+// ---- sin and cos, vectorised: the scalar ssincos's reduction and series (spatial/config.hpp) on
+// every lane, so a lane's result is the scalar one; the quadrant's sign and swap as lane masks
 template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x, typename Pack<double, W>::vec& s,
                                          typename Pack<double, W>::vec& c) {
   typedef typename Pack<double, W>::vec V;
   typedef typename Pack<double, W>::mask M;
-  const V k = __builtin_convertvector(__builtin_convertvector(x * 0.6366197723675814 + (x < 0 ? V{} - 0.5 : V{} + 0.5), M), V);
-  const V r = ((x - k * 1.5707963267341256) - k * 6.077100506303966e-11) - k * 2.0222662487959506e-21;
-  const V z = r * r;
-  // sin r = r + r·z·(-1/3! + z/5! - ...), cos r = 1 - z/2 + z²·(1/4! - z/6! + ...),
-  // Horner from the z⁹ terms; the leading terms added last, cos's 1 - z/2
-  // with its rounding error carried (w + ((1 - w) - z/2)), for results
-  // within about half an ulp
-  const double sc[8] = {-1.0 / 121645100408832000.0, 1.0 / 355687428096000.0, -1.0 / 1307674368000.0,
-                        1.0 / 6227020800.0, -1.0 / 39916800.0, 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0};
-  const double cc[8] = {1.0 / 6402373705728000.0, -1.0 / 20922789888000.0, 1.0 / 87178291200.0,
-                        -1.0 / 479001600.0, 1.0 / 3628800.0, -1.0 / 40320.0, 1.0 / 720.0, -1.0 / 24.0};
-  V ps = V{} + sc[0], pc = V{} + cc[0];
-  for (int i = 1; i < 8; ++i) ps = ps * z + sc[i];
-  for (int i = 1; i < 8; ++i) pc = pc * z + cc[i];
-  const V sr = r + r * (z * (ps * z - 1.0 / 6.0));
-  const V hz = 0.5 * z, w = 1.0 - hz;
-  const V cr = w + (((1.0 - w) - hz) + z * (z * -pc));
-  const M q = __builtin_convertvector(k, M) & 3;
+  const V shifted = sincos_shift(x);
+  V sr, cr;
+  sincos_quarter(sincos_reduce(x, shifted - kSincosShift), sr, cr);
+  M q;
+  __builtin_memcpy(&q, &shifted, sizeof q);
+  q = q & 3;
   const M swap = (q & 1) != 0;
   s = swap ? cr : sr;
   c = swap ? sr : cr;

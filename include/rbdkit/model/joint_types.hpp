@@ -85,7 +85,8 @@ template <int K, typename S> RBD_HD Mat3<S> turn_columns(const Mat3<S>& R, const
 
 // R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1)
 template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
-  const S c = scos(t), s = ssin(t);
+  S s, c;
+  ssincos(t, s, c);
   switch (b.axis_k) {
     case 1: return turn_columns<0>(R, c, b.axis.x * s);
     case 2: return turn_columns<1>(R, c, b.axis.y * s);

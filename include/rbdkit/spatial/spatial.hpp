@@ -151,7 +151,9 @@ template <typename S> struct Transform {
 
 // rotation of angle t about unit axis a (Rodrigues)
 template <typename S> RBD_HD Mat3<S> axis_angle(const Vec3<S>& a, const S& t) {
-  S s = ssin(t), c = scos(t), v = S(1) - c;
+  S s, c;
+  ssincos(t, s, c);
+  const S v = S(1) - c;
   return {{c + v * a.x * a.x, v * a.x * a.y - s * a.z, v * a.x * a.z + s * a.y,
            v * a.x * a.y + s * a.z, c + v * a.y * a.y, v * a.y * a.z - s * a.x,
            v * a.x * a.z - s * a.y, v * a.y * a.z + s * a.x, c + v * a.z * a.z}};
