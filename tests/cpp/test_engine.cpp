@@ -116,20 +116,30 @@ TEST(Pack, SinCosWithinUlps) {
       float sf1, cf1;
       rbd::ssincos(x[l], s1, c1);
       rbd::ssincos(xf[l], sf1, cf1);
-      ASSERT_EQ(s[l], s1) << x[l];
-      ASSERT_EQ(c[l], c1) << x[l];
-      ASSERT_EQ(sf[l], sf1) << xf[l];
-      ASSERT_EQ(cf[l], cf1) << xf[l];
+      const double sl = s[l], cl = c[l];
+      const float sfl = sf[l], cfl = cf[l];
+      ASSERT_EQ(std::memcmp(&sl, &s1, sizeof sl), 0) << x[l];
+      ASSERT_EQ(std::memcmp(&cl, &c1, sizeof cl), 0) << x[l];
+      ASSERT_EQ(std::memcmp(&sfl, &sf1, sizeof sfl), 0) << xf[l];
+      ASSERT_EQ(std::memcmp(&cfl, &cf1, sizeof cfl), 0) << xf[l];
     }
   }
   EXPECT_LE(worst, 1e-15);
   EXPECT_LE(worst_f, 6e-8);
+  // packs live anywhere: one at an element-aligned (not vector-aligned) address
+  alignas(64) unsigned char buf[4 * sizeof(P) + 64];
+  P* xs = reinterpret_cast<P*>(buf + sizeof(double));
+  P* ss = xs + 1;
+  P* cs = xs + 2;
+  for (int l = 0; l < 8; ++l) xs->set(l, 0.4 * l - 1.3);
+  rbd::ssincos(*xs, *ss, *cs);
+  for (int l = 0; l < 8; ++l) EXPECT_NEAR((*ss)[l], std::sin((*xs)[l]), 1e-15) << l;
 }
 
 // the scalar sin and cos (every joint's rotation on the host) against libm: every quadrant, both
 // signs, the rounding ties of x·2/π, multiples of π/2 and π/4, tiny and large |x| (the libm
-// fallback past 1e5), inf and NaN; ssin and scos are its two halves, and dual numbers carry cos and
-// -sin as derivatives
+// fallback past 1e5), inf and NaN, sin(-0) = -0; ssin and scos are its two halves, and dual
+// numbers carry cos and -sin as derivatives
 TEST(Scalar, SinCosWithinUlps) {
   std::vector<double> xs = {0.0, -0.0, 1e-300, -1e-300, 1e-8, 0.5, -0.5, 1e5, -1e5, 1.0000001e5, 3e7, -1e300};
   for (int k = -40; k <= 40; ++k)
@@ -144,14 +154,21 @@ TEST(Scalar, SinCosWithinUlps) {
   for (const double x : xs) {
     double s, c;
     rbd::ssincos(x, s, c);
+    ASSERT_TRUE(std::isfinite(s) && std::isfinite(c)) << x;
     worst = std::max({worst, std::fabs(s - std::sin(x)), std::fabs(c - std::cos(x))});
-    ASSERT_EQ(rbd::ssin(x), s);
-    ASSERT_EQ(rbd::scos(x), c);
+    const double s2 = rbd::ssin(x), c2 = rbd::scos(x);
+    ASSERT_EQ(std::memcmp(&s2, &s, sizeof s), 0) << x;
+    ASSERT_EQ(std::memcmp(&c2, &c, sizeof c), 0) << x;
+    if (std::fabs(x) > 1e30) continue;  // (not a float)
     float sf, cf;
     const float xf = static_cast<float>(x);
     rbd::ssincos(xf, sf, cf);
+    ASSERT_TRUE(std::isfinite(sf) && std::isfinite(cf)) << xf;
     worst_f = std::max({worst_f, std::fabs(double(sf) - std::sin(double(xf))), std::fabs(double(cf) - std::cos(double(xf)))});
   }
+  double s0, c0;
+  rbd::ssincos(-0.0, s0, c0);
+  EXPECT_TRUE(std::signbit(s0) && s0 == 0.0 && c0 == 1.0);  // sin(-0) = -0, as libm
   EXPECT_LE(worst, 1e-15);
   EXPECT_LE(worst_f, 6e-8);
   for (const double bad : {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()}) {
@@ -161,10 +178,13 @@ TEST(Scalar, SinCosWithinUlps) {
   }
   rbd::Dual<double> s, c;
   rbd::ssincos(rbd::Dual<double>{0.7, 2.0}, s, c);
-  EXPECT_NEAR(s.v, std::sin(0.7), 1e-16);
-  EXPECT_NEAR(s.d, 2.0 * std::cos(0.7), 1e-15);
-  EXPECT_NEAR(c.v, std::cos(0.7), 1e-16);
-  EXPECT_NEAR(c.d, -2.0 * std::sin(0.7), 1e-15);
+  double s7, c7;
+  rbd::ssincos(0.7, s7, c7);
+  EXPECT_EQ(s.v, s7);
+  EXPECT_EQ(s.d, 2.0 * c7);
+  EXPECT_EQ(c.v, c7);
+  EXPECT_EQ(c.d, -2.0 * s7);
+  EXPECT_NEAR(s7, std::sin(0.7), 2e-16);
 }
 
 // ------------------------------------------------------------------ engine

@@ -77,21 +77,31 @@ template <int W> inline Pack<float, W> ssqrt(const Pack<float, W>& a) {
   for (int l = 0; l < W; ++l) r.v[l] = __builtin_sqrtf(a.v[l]);
   return r;
 }
-// ---- sin and cos, vectorised: the scalar ssincos's reduction and series (spatial/config.hpp) on
-// every lane, so a lane's result is the scalar one; the quadrant's sign and swap as lane masks
-template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x, typename Pack<double, W>::vec& s,
-                                         typename Pack<double, W>::vec& c) {
-  typedef typename Pack<double, W>::vec V;
+// ---- sin and cos, vectorised: the scalar ssincos's shift, reduction and series (spatial/config.hpp)
+// on every lane, so a lane's result is the scalar one; the quadrant's sign and swap as lane masks.
+// The helpers work on the vector type in its natural alignment (NaturalVec: what their V is deduced
+// as), in locals: a pack's own vector is only element-aligned, since packs live anywhere
+template <int W> struct NaturalVec {
+  typedef double type __attribute__((vector_size(sizeof(double) * W)));
+};
+template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x_in, typename Pack<double, W>::vec& s_out,
+                                         typename Pack<double, W>::vec& c_out) {
+  typedef typename NaturalVec<W>::type V;
   typedef typename Pack<double, W>::mask M;
-  const V shifted = sincos_shift(x);
-  V sr, cr;
-  sincos_quarter(sincos_reduce(x, shifted - kSincosShift), sr, cr);
+  const V x = x_in;
+#if defined(__FAST_MATH__)
+  for (int l = 0; l < W; ++l) s_out[l] = ::sin(x[l]), c_out[l] = ::cos(x[l]);
+#else
+  V shifted, r, sr, cr;
+  sincos_shift(x, shifted);
+  sincos_reduce(x, shifted, r);
+  sincos_quarter(r, sr, cr);
   M q;
   __builtin_memcpy(&q, &shifted, sizeof q);
   q = q & 3;
   const M swap = (q & 1) != 0;
-  s = swap ? cr : sr;
-  c = swap ? sr : cr;
+  V s = swap ? cr : sr;
+  V c = swap ? sr : cr;
   s = (q & 2) != 0 ? -s : s;
   c = ((q + 1) & 2) != 0 ? -c : c;
   const M big = (x > 1e5) | (x < -1e5) | (x != x);
@@ -100,6 +110,8 @@ template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x,
   if (any)
     for (int l = 0; l < W; ++l)
       if (big[l]) s[l] = ::sin(x[l]), c[l] = ::cos(x[l]);
+  s_out = s, c_out = c;
+#endif
 }
 template <typename T, int W> inline void ssincos(const Pack<T, W>& x, Pack<T, W>& s, Pack<T, W>& c);
 template <int W> inline void ssincos(const Pack<double, W>& x, Pack<double, W>& s, Pack<double, W>& c) {

@@ -38,22 +38,30 @@ namespace rbd {
 
 // ---- sin and cos together, for a joint's rotation in every pass: x = k·π/2 + r (Cody–Waite, π/2 in
 // three parts, k·part exact for |k| < 2²⁰), then Taylor series of sin and cos on |r| ≤ π/4 (9 terms:
-// the remainder is below 1e-19) and the quadrant's sign and swap. Within about an ulp of libm, and
-// inlined where libm's sin and cos are calls of ~100 instructions each; |x| > 1e5 and NaN go to libm.
-// float is computed in double and rounded. The SIMD packs (batch/simd.hpp) share sincos_reduce and
-// sincos_quarter lane for lane, so a pack's lanes equal the scalar results. Device code: CUDA's sincos.
-// V: double, or a GCC/clang vector of doubles
-// x·2/π + 1.5·2⁵²: its low mantissa bits are k = round(x·2/π) (ties to even), exactly, for |x| ≤ 1e5;
-// k = shifted - kSincosShift, and k mod 4 is the low two bits of its representation
+// the remainder is below 1e-19) and the quadrant's sign and swap. Within two ulps of libm (the
+// reduction's roundings), and inlined where libm's sin and cos are calls of ~100 instructions each;
+// |x| > 1e5, inf and NaN go to libm, and so does everything under -ffast-math (which would fold the
+// shift and the reduction). float is computed in double and rounded. The SIMD packs (batch/simd.hpp)
+// share sincos_shift, sincos_reduce and sincos_quarter lane for lane, so a pack's lanes equal the
+// scalar results. Device code: CUDA's sincos.
+// V: double, or a GCC/clang vector of doubles in its natural alignment (a pack's own vector is only
+// element-aligned: simd.hpp copies it into a local first)
+// fl(x·2/π) + 1.5·2⁵²: its low mantissa bits are k, fl(x·2/π) rounded to an integer (ties to even),
+// exactly, for |x| ≤ 1e5; k = shifted - kSincosShift, and k mod 4 is the low two bits of its representation
 constexpr double kSincosShift = 6755399441055744.0;
-template <typename V> RBD_HD_INLINE V sincos_shift(const V& x) { return x * 0.6366197723675814 + kSincosShift; }
-// r = x - k·π/2
-template <typename V> RBD_HD_INLINE V sincos_reduce(const V& x, const V& k) {
-  return ((x - k * 1.5707963267341256) - k * 6.077100506303966e-11) - k * 2.0222662487959506e-21;
+// (the helpers write through references: no vector passes by value, whose ABI depends on the target)
+template <typename V> RBD_HD_INLINE void sincos_shift(const V& x, V& shifted) {
+  shifted = x * 0.6366197723675814 + kSincosShift;
+}
+// r = x - k·π/2 for k = shifted - kSincosShift
+template <typename V> RBD_HD_INLINE void sincos_reduce(const V& x, const V& shifted, V& r) {
+  const V k = shifted - kSincosShift;
+  r = ((x - k * 1.5707963267341256) - k * 6.077100506303966e-11) - k * 2.0222662487959506e-21;
 }
 // sr = sin r, cr = cos r for |r| ≤ π/4: sin r = r + r·z·(-1/3! + z/5! - ...), cos r = 1 - z/2 +
-// z²·(1/4! - z/6! + ...) (z = r²), Horner from the z⁹ terms; the leading terms added last, cos's
-// 1 - z/2 with its rounding error carried (w + ((1 - w) - z/2)), for results within about half an ulp
+// z²·(1/4! - z/6! + ...) (z = r²), the series' tails by Estrin's scheme (z, z², z⁴: 3 levels where
+// Horner's chain has 8); the leading terms added last, cos's 1 - z/2 with its rounding error carried
+// (w + ((1 - w) - z/2)), for results within about half an ulp of sin r and cos r; sin(±0) = ±0
 template <typename V> RBD_HD_INLINE void sincos_quarter(const V& r, V& sr, V& cr) {
   const double sc[8] = {-1.0 / 121645100408832000.0, 1.0 / 355687428096000.0, -1.0 / 1307674368000.0,
                         1.0 / 6227020800.0, -1.0 / 39916800.0, 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0};
@@ -63,20 +71,24 @@ template <typename V> RBD_HD_INLINE void sincos_quarter(const V& r, V& sr, V& cr
   const V ps = ((sc[7] + sc[6] * z) + (sc[5] + sc[4] * z) * z2) + ((sc[3] + sc[2] * z) + (sc[1] + sc[0] * z) * z2) * z4;
   const V pc = ((cc[7] + cc[6] * z) + (cc[5] + cc[4] * z) * z2) + ((cc[3] + cc[2] * z) + (cc[1] + cc[0] * z) * z2) * z4;
   sr = r + r * (z * (ps * z - 1.0 / 6.0));
+  sr = r == 0.0 ? r : sr;  // the sum above is +0 for r = -0
   const V hz = 0.5 * z, w = 1.0 - hz;
   cr = w + (((1.0 - w) - hz) + z * (z * -pc));
 }
 RBD_HD_INLINE void ssincos(double x, double& s, double& c) {
 #if defined(__CUDA_ARCH__)
   ::sincos(x, &s, &c);
+#elif defined(__FAST_MATH__)
+  s = ::sin(x), c = ::cos(x);
 #else
   if (!(::fabs(x) <= 1e5)) {
     s = ::sin(x), c = ::cos(x);
     return;
   }
-  const double shifted = sincos_shift(x);
-  double sr, cr;
-  sincos_quarter(sincos_reduce(x, shifted - kSincosShift), sr, cr);
+  double shifted, r, sr, cr;
+  sincos_shift(x, shifted);
+  sincos_reduce(x, shifted, r);
+  sincos_quarter(r, sr, cr);
   long long bits;
   __builtin_memcpy(&bits, &shifted, sizeof bits);
   const int quadrant = static_cast<int>(bits & 3);
@@ -97,27 +109,21 @@ RBD_HD_INLINE void ssincos(float x, float& s, float& c) {
 
 // scalar functions, overloaded per Scalar type (the dual number type in
 // dual.hpp adds its own overloads) so templates never call std:: directly.
-// sin and cos are ssincos's, on the host and the device alike
-RBD_HD_INLINE double ssin(double x) {
-  double s, c;
+// sin and cos are ssincos's halves, on the host and the device alike
+template <typename S> RBD_HD_INLINE S sincos_sin(S x) {
+  S s, c;
   ssincos(x, s, c);
   return s;
 }
-RBD_HD_INLINE double scos(double x) {
-  double s, c;
+template <typename S> RBD_HD_INLINE S sincos_cos(S x) {
+  S s, c;
   ssincos(x, s, c);
   return c;
 }
-RBD_HD_INLINE float ssin(float x) {
-  float s, c;
-  ssincos(x, s, c);
-  return s;
-}
-RBD_HD_INLINE float scos(float x) {
-  float s, c;
-  ssincos(x, s, c);
-  return c;
-}
+RBD_HD_INLINE double ssin(double x) { return sincos_sin(x); }
+RBD_HD_INLINE double scos(double x) { return sincos_cos(x); }
+RBD_HD_INLINE float ssin(float x) { return sincos_sin(x); }
+RBD_HD_INLINE float scos(float x) { return sincos_cos(x); }
 RBD_HD double ssqrt(double x) { return ::sqrt(x); }
 RBD_HD double satan2(double y, double x) { return ::atan2(y, x); }
 RBD_HD double sabs(double x) { return ::fabs(x); }

@@ -38,10 +38,11 @@ template <typename S> RBD_HD typename DualBase<S>::type value_of(const Dual<S>& 
 template <typename S> RBD_HD Dual<S> ssin(const Dual<S>& a) { return {ssin(a.v), a.d * scos(a.v)}; }
 template <typename S> RBD_HD Dual<S> scos(const Dual<S>& a) { return {scos(a.v), -a.d * ssin(a.v)}; }
 template <typename S> RBD_HD void ssincos(const Dual<S>& a, Dual<S>& s, Dual<S>& c) {
+  const S d = a.d;  // (a may be s or c)
   S sv, cv;
   ssincos(a.v, sv, cv);
-  s = {sv, a.d * cv};
-  c = {cv, -a.d * sv};
+  s = {sv, d * cv};
+  c = {cv, -d * sv};
 }
 template <typename S> RBD_HD Dual<S> ssqrt(const Dual<S>& a) {
   const S r = ssqrt(a.v);
