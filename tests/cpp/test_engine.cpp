@@ -1,6 +1,6 @@
 // The batched CPU engine (engine.hpp) and its SIMD pack (simd.hpp):
 //   * Pack<T, W>: lane-wise arithmetic, functions and branch helpers equal
-//     the scalar ones lane by lane (sin and cos within an ulp of libm, and
+//     the scalar ones lane by lane (sin and cos within two ulps of libm, and
 //     equal to the scalar ssincos bit for bit);
 //   * every operation, on every model case: results bit-identical for
 //     threads 1, 2, 3 and B in {1, 3, 7, 16, 65}; float64 equal to the

@@ -72,7 +72,9 @@ template <typename S> RBD_HD S coef_c(const S& t2) {
   if (any_lane(small)) r = series(t2, c);
   if (!all_lanes(small)) {
     const S t = ssqrt(t2);
-    r = select(small, r, (S(1) - S(0.5) * t * ssin(t) / (S(1) - scos(t))) / t2);
+    S st, ct;
+    ssincos(t, st, ct);
+    r = select(small, r, (S(1) - S(0.5) * t * st / (S(1) - ct)) / t2);
   }
   return r;
 }
@@ -98,7 +100,9 @@ template <typename S> RBD_HD S coef_e(const S& t2) {
   if (any_lane(small)) r = series(t2, c);
   if (!all_lanes(small)) {
     const S t = ssqrt(t2);
-    r = select(small, r, (S(2) * t - S(3) * ssin(t) + t * scos(t)) / (S(2) * t2 * t2 * t));
+    S st, ct;
+    ssincos(t, st, ct);
+    r = select(small, r, (S(2) * t - S(3) * st + t * ct) / (S(2) * t2 * t2 * t));
   }
   return r;
 }
@@ -116,8 +120,10 @@ template <typename S> RBD_HD Quat<S> quat_exp(const Vec3<S>& w) {
   }
   if (!all_lanes(small)) {
     const S t = ssqrt(t2);
-    c = select(small, c, scos(S(0.5) * t));
-    sinc = select(small, sinc, ssin(S(0.5) * t) / t);
+    S sh, ch;  // sin(θ/2), cos(θ/2)
+    ssincos(S(0.5) * t, sh, ch);
+    c = select(small, c, ch);
+    sinc = select(small, sinc, sh / t);
   }
   return {sinc * w.x, sinc * w.y, sinc * w.z, c};
 }
