@@ -2,8 +2,9 @@
 // space, on every bundled robot and joint-type test model (fixed and
 // floating). Pinocchio equivalence is in tests/python; this suite also runs
 // under the sanitizers. Also: ∇FD's tree-sparse product against the dense one
-// (bit for bit), the body-frame CRBA against the world-frame pass, and the team
-// forms against the serial passes (bit for bit).
+// (bit for bit), the body-frame CRBA against the world-frame pass, the team
+// forms against the serial passes (bit for bit), ∇FD's acceleration against
+// ABA's, and M⁻¹ in a free root's frame against the world frame's.
 #include <gtest/gtest.h>
 
 #include "test_models.hpp"
@@ -211,30 +212,127 @@ TEST_P(Derivatives, TeamPassesEqualTheSerialPasses) {
     store(wt.f[i], ft), store(ws.f[i], fs);
     expect_same(ft, fs, 6, "RNEA's forces");
   }
-  // M⁻¹: the articulated inertias' U and D⁻¹, then the columns
-  std::vector<double> scratch(nv * nv), Ms(nv * nv, 0.0), Mt(nv * nv, 0.0);
-  ASSERT_TRUE(minv_backward_pass(mv, ws, q.data(), scratch.data()));
-  for (int c = 0; c < nv; ++c) minv_column(mv, ws, c, Ms.data());
-  int ok = 0;
-  minv_team(team, mv, wt, q.data(), false, Mt.data(), &ok);
-  ASSERT_EQ(ok, 1);
-  for (int i = 0; i < nb; ++i) {
-    const int n = m.bodies[i].nv;
-    expect_same(wt.Dinv + 36 * i, ws.Dinv + 36 * i, n * n, "M⁻¹'s D⁻¹");
-    if (i > 0 || m.bodies[i].type != kFree)  // (a free root's U is not formed)
-      for (int k = 0; k < n; ++k) {
-        double ut[6], us[6];
-        store(wt.U[6 * i + k], ut), store(ws.U[6 * i + k], us);
-        expect_same(ut, us, 6, "M⁻¹'s U");
-      }
+  // M⁻¹: the articulated inertias' U and D⁻¹, then the columns, in the world frame and in a free root's
+  for (const bool world : {true, false}) {
+    SCOPED_TRACE(world ? "world frame" : "root frame");
+    std::vector<double> scratch(nv * nv), Ms(nv * nv, 0.0), Mt(nv * nv, 0.0);
+    ASSERT_TRUE(minv_backward_pass(mv, ws, q.data(), scratch.data(), world));
+    for (int c = 0; c < nv; ++c) minv_column(mv, ws, c, Ms.data());
+    int ok = 0;
+    minv_team(team, mv, wt, q.data(), false, Mt.data(), &ok, world);
+    ASSERT_EQ(ok, 1);
+    for (int i = 0; i < nb; ++i) {
+      const int n = m.bodies[i].nv;
+      expect_same(wt.Dinv + 36 * i, ws.Dinv + 36 * i, n * n, "M⁻¹'s D⁻¹");
+      if (i > 0 || m.bodies[i].type != kFree)  // (a free root's U is not formed)
+        for (int k = 0; k < n; ++k) {
+          double ut[6], us[6];
+          store(wt.U[6 * i + k], ut), store(ws.U[6 * i + k], us);
+          expect_same(ut, us, 6, "M⁻¹'s U");
+        }
+    }
+    for (int r = 0; r < nv; ++r) expect_same(Mt.data() + r * nv + r, Ms.data() + r * nv + r, nv - r, "M⁻¹'s rows");
   }
-  for (int r = 0; r < nv; ++r) expect_same(Mt.data() + r * nv + r, Ms.data() + r * nv + r, nv - r, "M⁻¹'s rows");
   // ∇ID
   std::vector<double> dq_s(nv * nv), dv_s(nv * nv), dq_t(nv * nv), dv_t(nv * nv);
   rnea_derivatives(mv, ws, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, dq_s.data(), dv_s.data());
   rnea_derivatives_team(team, mv, wt, q.data(), qd.data(), qdd.data(), fext.data(), 9.81, dq_t.data(), dv_t.data());
   expect_same(dq_t.data(), dq_s.data(), nv * nv, "∂ID/∂q");
   expect_same(dv_t.data(), dv_s.data(), nv * nv, "∂ID/∂qd");
+  // ∇FD: qdd = M⁻¹ (tau - c) and -M⁻¹ ∂ID in both forms (the tiles' sums in the serial products' order;
+  // the team's M⁻¹ is the column path's, which a free root's rows of the passes equal to 1e-13, not bit
+  // for bit: MinvPassesEqualTheColumnPath; the products carry that to the derivatives, 3e-13 seen)
+  std::vector<double> tau(nv), a_s(nv), a_t(nv), fq_s(nv * nv), fv_s(nv * nv), fq_t(nv * nv), fv_t(nv * nv);
+  for (auto& x : tau) x = 10 * U(rng);
+  std::vector<double> extra(aba_derivatives_team_bytes<double>(nb, nv) / sizeof(double) + 1);
+  ASSERT_TRUE(aba_derivatives(mv, ws, q.data(), qd.data(), tau.data(), fext.data(), 9.81, a_s.data(), fq_s.data(),
+                              fv_s.data()));
+  ASSERT_TRUE(aba_derivatives_team(team, mv, wt, reinterpret_cast<unsigned char*>(extra.data()), q.data(), qd.data(),
+                                   tau.data(), fext.data(), 9.81, a_t.data(), fq_t.data(), fv_t.data()));
+  const double tol_fd = m.bodies[0].type == kFree ? 1e-11 : tol;
+  auto near = [&](const std::vector<double>& x, const std::vector<double>& y, const char* what) {
+    EXPECT_LE(max_rel_err(x, y), tol_fd) << what;
+  };
+  near(a_t, a_s, "∇FD's qdd");
+  near(fq_t, fq_s, "∂qdd/∂q");
+  near(fv_t, fv_s, "∂qdd/∂qd");
+}
+
+// ∇FD's qdd is M⁻¹ (tau - c), not ABA's: the same acceleration to rounding (cond(M)·ε), with and
+// without f_ext, mimic models (M's Cholesky factor) included
+TEST_P(Derivatives, ForwardDynamicsGradientsAccelerationIsAbas) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  WorkspaceBuffer buf(m);
+  Workspace<double>& w = buf.get();
+  const ModelView<double> mv = m.view();
+  const int nv = m.nv, nb = m.nb();
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(nv), q(m.nq), qd(nv), tau(nv), fext(6 * nb);
+  for (int trial = 0; trial < 3; ++trial) {
+    for (auto& x : d) x = 2 * U(rng);
+    for (auto& x : qd) x = 2 * U(rng);
+    for (auto& x : tau) x = 10 * U(rng);
+    for (auto& x : fext) x = U(rng);
+    integrate(mv, q0.data(), d.data(), q.data());
+    for (const double* f : {static_cast<const double*>(nullptr), static_cast<const double*>(fext.data())}) {
+      std::vector<double> a_fd(nv), a_aba(nv), Fq(nv * nv), Fv(nv * nv);
+      ASSERT_TRUE(aba_derivatives(mv, w, q.data(), qd.data(), tau.data(), f, -9.81, a_fd.data(), Fq.data(), Fv.data()));
+      ASSERT_TRUE(aba(mv, w, q.data(), qd.data(), tau.data(), f, -9.81, a_aba.data()));
+      EXPECT_LT(max_rel_err(a_fd, a_aba), 1e-11) << "trial " << trial << (f ? ", f_ext" : "");
+    }
+  }
+}
+
+// minv computes a tree with a free root in the root's own frame (its S the identity), unless asked to
+// leave world-frame placements for the derivative passes. M M⁻¹ = 1 in that frame with the base near
+// the origin and far from it (where the world frame's lever arms are long and its M⁻¹ loses digits:
+// on floating Atlas 1e-8 relative 100 m out), the two frames agree near the origin, and the column
+// path (the team kernels') agrees with the passes in the root frame. Without a free root there is one
+// frame: the same result bit for bit
+TEST_P(Derivatives, MinvInTheRootFrameIsTheInverse) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  WorkspaceBuffer buf(m);
+  Workspace<double>& w = buf.get();
+  const ModelView<double> mv = m.view();
+  const bool free_root = !mv.has_mimic && m.bodies[0].type == kFree;
+  const int nv = m.nv;
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(nv), q(m.nq);
+  for (int trial = 0; trial < 3; ++trial) {
+    for (auto& x : d) x = 2 * U(rng);
+    integrate(mv, q0.data(), d.data(), q.data());
+    if (free_root) q[0] += 100 * trial, q[1] -= 50 * trial, q[2] += 20 * trial;
+    std::vector<double> Mr(nv * nv), Mw(nv * nv), M(nv * nv), Mc(nv * nv, 0.0), scratch(nv * nv);
+    ASSERT_TRUE(minv(mv, w, q.data(), true, Mr.data()));
+    ASSERT_TRUE(minv(mv, w, q.data(), true, Mw.data(), true));
+    if (!free_root) {
+      EXPECT_EQ(std::memcmp(Mr.data(), Mw.data(), Mr.size() * sizeof(double)), 0) << "trial " << trial;
+      continue;
+    }
+    crba(mv, w, q.data(), M.data());
+    double scale = 0, err = 0, ident = 0, mnorm = 0;
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) {
+        scale = std::max(scale, std::abs(Mr[r * nv + c]));
+        mnorm = std::max(mnorm, std::abs(M[r * nv + c]));
+        err = std::max(err, std::abs(Mr[r * nv + c] - Mw[r * nv + c]));
+        double s = 0;
+        for (int k = 0; k < nv; ++k) s += M[r * nv + k] * Mr[k * nv + c];
+        ident = std::max(ident, std::abs(s - (r == c ? 1.0 : 0.0)));
+      }
+    // n ε |M| |M⁻¹|, a backward-stable bound. The world frame's M⁻¹ is 10-20x further from it near the
+    // origin and misses it 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on Atlas; here 5e-14, 1e-13)
+    EXPECT_LT(ident, 1e-16 * nv * mnorm * scale) << "trial " << trial;
+    if (trial == 0) EXPECT_LT(err, 1e-10 * scale);
+    ASSERT_TRUE(minv_backward_pass(mv, w, q.data(), scratch.data(), false));
+    for (int c = 0; c < nv; ++c) minv_column(mv, w, c, Mc.data());
+    err = 0;
+    for (int r = 0; r < nv; ++r)
+      for (int c = r; c < nv; ++c) err = std::max(err, std::abs(Mr[r * nv + c] - Mc[r * nv + c]));
+    EXPECT_LT(err, 1e-13 * scale) << "trial " << trial;
+  }
 }
 
 // M⁻¹'s serial passes (F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one

@@ -56,6 +56,7 @@ struct ReversedTeam {
     each(rows * cols, [&](long k) { f(k / cols, k % cols); });
   }
   template <typename F> void one(F&& f) const { f(); }
+  template <typename F, typename G> void beside(F&& f, G&& g) const { g(), f(*this); }
 };
 
 }  // namespace rbd_test

@@ -20,7 +20,7 @@ template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<
     crba(m, w, q, w.dense);
     return cholesky(w.dense, m.nv);
   }
-  return minv(m, w, q, true, w.dense);
+  return minv(m, w, q, true, w.dense, true);
 }
 
 // D (nv x cols, row-major) <- -M⁻¹ D, after prepare_minv. Without mimic
@@ -92,14 +92,16 @@ template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>&
 }
 
 // qdd (nv), ∂qdd/∂q and ∂qdd/∂qd (nv x nv each). false if M is not PD.
+// qdd = M⁻¹ (tau - c) with the bias c = ID(q, qd, 0, f_ext) (forward_dynamics): M⁻¹ is the one the
+// derivative products need anyway, so qdd costs an RNEA and a product where ABA's three passes took
+// about twice that. It agrees with ABA's (the aba operation, the integrators' step) to rounding, not
+// bit for bit, as the team form's does (whose M⁻¹ is minv_column's, equal to the passes' to rounding).
 template <typename S>
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
-  // qdd by ABA, as the integrators compute it (a step and its gradient give the same x⁺, bit for bit)
-  if (!aba(m, w, q, qd, tau, fext, gravity, qdd)) return false;
-  // M⁻¹ first: its backward pass leaves the world placements and body inertias
-  // that the derivative passes then reuse (the mimic path's CRBA does not)
-  if (!prepare_minv(m, w, q)) return false;
+  // M⁻¹ (prepare_minv's) in world coordinates: its backward pass leaves the world placements and
+  // body inertias that the derivative passes then reuse (the mimic path's CRBA does not)
+  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd, true)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     if (tree_sparse_product_pays(m)) {
@@ -140,7 +142,7 @@ RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace
   if (!qdd) qdd = r + nv;
   int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
   const S* Minv = w.dense;
-  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok); },
+  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok, true); },
            [&] {
              rnea(m, wr, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
              for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];

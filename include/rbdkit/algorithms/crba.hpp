@@ -28,9 +28,10 @@ namespace rbd {
 // ---- body coordinates (models off the general path: no mimic joints, subtrees contiguous)
 
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
-// the columns F (nv x 6 row-major, each in body i's frame) and zeros over the columns after
-// its subtree (not its descendants'), each mirrored into the lower triangle. Over the pass every
-// entry of M is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows).
+// the columns F (nv x 6 row-major, each in body i's frame), each mirrored into the lower triangle.
+// Over the pass every entry of M that can be nonzero is assigned, off the diagonal once (the columns
+// before v_i: by i's ancestors' rows); the others (neither in i's subtree nor its ancestors') stay
+// as the pass found them, zero.
 // fc, sign: joint_frame_column(b, sign)
 template <typename S>
 RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign, const S* F, S* M) {
@@ -55,11 +56,11 @@ RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign,
       for (int l = 0; l < b.nv && vi + l <= c; ++l) M[(vi + l) * nv + c] = x[l], M[c * nv + vi + l] = x[l];
     }
   }
-  for (int l = 0; l < b.nv; ++l)
-    for (int c = c_end; c < nv; ++c) M[(vi + l) * nv + c] = S(0), M[c * nv + vi + l] = S(0);
 }
 
-// backward pass, bodies last to first:
+// backward pass, bodies last to first, on M zeroed first (one contiguous fill: on a branched tree
+// most of M is zero, and zeroing each row's columns past the subtree with their mirrored column
+// took 6 % of Atlas's instructions, strided):
 //   F_c = Ic_i s_c for body i's DoFs c               (its columns join the subtree's; picks from Ic
 //                                                     for a frame-axis or free joint)
 //   M[v_i.., subtree] = S_iᵀ F                        (crba_store_rows)
@@ -67,6 +68,7 @@ RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign,
 // reads w.X_parent; writes w.Ic (composites, body frames), w.F (nv x 6: the columns), M
 template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
   S* F = w.F;
+  for (int k = 0; k < m.nv * m.nv; ++k) M[k] = S(0);
   RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];

@@ -42,14 +42,26 @@ template <typename S> RBD_HD void neg_dinv_times(int n, const S* Dinv, const S* 
   }
 }
 
-// U = IA S and D⁻¹ for body b's joint, IA and the subspace columns Sw in world coordinates (minv's
-// passes). A free root needs no U (it hands nothing to a parent and has no P_λ to project) and its
-// D = Sᵀ IA S, with S = X_0b as a 6 x 6, is IA seen from its own frame: one congruence transform,
-// about 200 multiplies where U and D take 432. false if D is not positive definite
+// a free root whose tree minv computes in the root's own frame (not leave_world): its S is then the
+// identity, and its descendants' placements are relative to it
+template <typename S> RBD_HD bool in_root_frame(const BodyDesc<S>& b, bool leave_world) {
+  return !leave_world && b.type == kFree && b.parent < 0;
+}
+
+// U = IA S and D⁻¹ for body b's joint, IA and the subspace columns Sw in minv's frame (the world's or
+// a free root's). A free root needs no U (it hands nothing to a parent and has no P_λ to project) and
+// its D = Sᵀ IA S is IA seen from its own frame: IA itself in the root's frame, else (S = X_0b as a
+// 6 x 6) one congruence transform, about 200 multiplies where U and D take 432. false if D is not
+// positive definite
 template <typename S>
 RBD_HD bool minv_joint_inertia(const BodyDesc<S>& b, const Transform<S>& X_world, const Motion<S>* Sw,
-                               const Mat6<S>& IA, Force<S>* U, S* Dinv) {
+                               const Mat6<S>& IA, Force<S>* U, S* Dinv, bool leave_world) {
   if (b.type == kFree && b.parent < 0) {
+    if (in_root_frame(b, leave_world)) {
+      S D[36];
+      for (int k = 0; k < 36; ++k) D[k] = IA.m[k];
+      return spd_inverse(D, 6, Dinv);
+    }
     Mat6<S> D = transform_mat6(X_world.inverse(), IA);
     return spd_inverse(D.m, 6, Dinv);
   }
@@ -166,17 +178,31 @@ RBD_HD void mat6_times_rows(const Mat6<S>& A, const S* RBD_RESTRICT in, int is, 
 }
 
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
-// writes w.X_parent, w.X_world, w.Ic (the world body inertias), w.IA, w.U (world
-// frame; not a free root's), w.Dinv, w.S_world, w.F (6 x nv), Minv (upper part). false if some D
-// is not positive definite.
-template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) {
+// writes w.X_parent (not a free root's, unless leave_world), w.X_world, w.Ic (the body inertias), w.IA,
+// w.U (not a free root's), w.Dinv, w.S_world, w.F (6 x nv), Minv (upper part), all in world coordinates
+// when leave_world (the derivative passes reuse them); otherwise a tree with a free root in its root's
+// frame (X_world the placement relative to it; M⁻¹ does not depend on the frame, and the root's S is
+// then the identity: no change of frame for its D, its rows or its P). false if some D is not
+// positive definite.
+template <typename S>
+RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
-  // body placements X_0i, articulated inertias start as the body inertias (world frame)
+  // body placements X_0i, articulated inertias start as the body inertias
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    world_placement(m, w, q, i, false);
-    w.Ic[i] = transform_inertia(w.X_world[i], b.I);
+    if (in_root_frame(b, leave_world)) {
+      w.X_world[i] = Transform<S>::identity();
+      w.Ic[i] = b.I;
+    } else {
+      if (b.parent >= 0 && in_root_frame(m.body[b.parent], leave_world)) {
+        w.X_parent[i] = body_transform(b, q);
+        w.X_world[i] = w.X_parent[i];
+      } else {
+        world_placement(m, w, q, i, false);
+      }
+      w.Ic[i] = transform_inertia(w.X_world[i], b.I);
+    }
     w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
@@ -190,8 +216,17 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
     Motion<S>* Sw = w.S_world + 6 * i;
     S* Dinv = w.Dinv + 36 * i;
     // U = IA S, D⁻¹, and IA_λ += IA - U D⁻¹ Uᵀ
-    for (int k = 0; k < ni; ++k) Sw[k] = joint_subspace_col_in(b, w.X_world[i], k);
-    if (!minv_joint_inertia(b, w.X_world[i], Sw, w.IA[i], U, Dinv)) return false;
+    const bool own = in_root_frame(b, leave_world);
+    if (own) {
+      for (int k = 0; k < 6; ++k) {
+        S e[6] = {S(0), S(0), S(0), S(0), S(0), S(0)};
+        e[k] = S(1);
+        Sw[k] = load_motion(e);
+      }
+    } else {
+      for (int k = 0; k < ni; ++k) Sw[k] = joint_subspace_col_in(b, w.X_world[i], k);
+    }
+    if (!minv_joint_inertia(b, w.X_world[i], Sw, w.IA[i], U, Dinv, leave_world)) return false;
     if (b.parent >= 0) add_articulated_residual(ni, w.IA[i], U, Dinv, w.IA[b.parent]);
     // own block: D⁻¹
     for (int k = 0; k < ni; ++k)
@@ -201,11 +236,15 @@ template <typename S> RBD_HD bool minv_backward_pass(const ModelView<S>& m, Work
       minv_row_from_columns(Sw[0], -Dinv[0], F, nv, vi + 1, c_end, Minv + vi * nv);
     } else if (b.type == kFree && b.parent < 0) {  // -D⁻¹ X_0b⁻¹ F as one 6 x 6 on the rows of F
       Mat6<S> G;
-      for (int k = 0; k < 6; ++k) {  // column k of the force transform X_0b⁻¹, then of -D⁻¹ times it
-        S e[6] = {S(0), S(0), S(0), S(0), S(0), S(0)}, xk[6];
-        e[k] = S(1);
-        store(w.X_world[i].act_inv(load_force(e)), xk);
-        neg_dinv_times<6>(Dinv, xk, &G(0, k), 6);
+      if (own) {  // S = 1: -D⁻¹
+        for (int k = 0; k < 36; ++k) G.m[k] = -Dinv[k];
+      } else {
+        for (int k = 0; k < 6; ++k) {  // column k of the force transform X_0b⁻¹, then of -D⁻¹ times it
+          S e[6] = {S(0), S(0), S(0), S(0), S(0), S(0)}, xk[6];
+          e[k] = S(1);
+          store(w.X_world[i].act_inv(load_force(e)), xk);
+          neg_dinv_times<6>(Dinv, xk, &G(0, k), 6);
+        }
       }
       mat6_times_rows(G, F, nv, vi + 6, c_end, Minv + vi * nv, nv);
     } else
@@ -265,8 +304,10 @@ RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int
 }
 
 // forward pass over columns ≥ v_idx, parents first: minv_forward_step's work, each body's P_i as
-// 6 x nv (w.P + 6 nv i; a one-DoF body's columns at once, minv_forward_row)
-template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
+// 6 x nv (w.P + 6 nv i; a one-DoF body's columns at once, minv_forward_row). leave_world: as the
+// backward pass was given
+template <typename S>
+RBD_HD void minv_forward_pass(const ModelView<S>& m, Workspace<S>& w, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
@@ -279,6 +320,11 @@ template <typename S> RBD_HD void minv_forward_pass(const ModelView<S>& m, Works
     const S* Pp = b.parent >= 0 ? w.P + 6 * nv * b.parent : nullptr;
     if (ni == 1) {
       minv_forward_row(U[0], Sw[0], Dinv[0], Pp, nv, vi, nv, Minv + vi * nv, P);
+      continue;
+    }
+    if (in_root_frame(b, leave_world)) {  // S = 1: P is its six rows of M⁻¹
+      for (int r = 0; r < 6; ++r)
+        for (int c = vi; c < nv; ++c) P[r * nv + c] = Minv[(vi + r) * nv + c];
       continue;
     }
     if (!Pp && ni == 6) {  // a free root: P = S Minv_i· as one 6 x 6 (S's columns) on its six rows
@@ -335,22 +381,43 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
 }
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
-// body inertias side by side (world_placements_team), the articulated inertias U, D⁻¹ (the only chain:
+// body inertias side by side (world_placements_team; in a free root's frame the chain X_0i starts at
+// the identity there, as minv_backward_pass's does), the articulated inertias U, D⁻¹ (the only chain:
 // IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every column side by side (minv_column),
-// then the lower triangle (mirrored when dense, else zero). The same values as minv. ok: where the
-// team writes whether every D was positive definite (read it after the team's next barrier). An
-// InlineTeam runs minv
+// then the lower triangle (mirrored when dense, else zero). The same values as minv (to the signs of
+// zeros; leave_world as minv's). ok: where the team writes whether every D was positive definite (read
+// it after the team's next barrier). An InlineTeam runs minv
 template <typename S, typename Team>
 RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv,
-                      int* ok) {
+                      int* ok, bool leave_world = false) {
   if constexpr (!Team::cooperative) {
-    *ok = minv(m, w, q, dense, Minv);
+    *ok = minv(m, w, q, dense, Minv, leave_world);
   } else {
     const int nv = m.nv;
-    world_placements_team(t, m, w, q, true, [&](int i) {
-      w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
+    auto inertias = [&](int i) {
+      const BodyDesc<S>& b = m.body[i];
+      w.Ic[i] = in_root_frame(b, leave_world) ? b.I : transform_inertia(w.X_world[i], b.I);
       w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
-    });
+    };
+    if (leave_world) {
+      world_placements_team(t, m, w, q, true, inertias);
+    } else {
+      t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
+      t.one([&] {
+        RBD_UNROLL
+        for (int i = 0; i < m.nb; ++i) {
+          const int p = m.body[i].parent;
+          if (in_root_frame(m.body[i], false)) w.X_world[i] = Transform<S>::identity();
+          else if (p >= 0 && !in_root_frame(m.body[p], false)) w.X_world[i] = w.X_world[p] * w.X_parent[i];
+          else w.X_world[i] = w.X_parent[i];
+        }
+      });
+      t.each(m.nb, [&](long i) {
+        const BodyDesc<S>& b = m.body[i];
+        for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
+        inertias(static_cast<int>(i));
+      });
+    }
     t.one([&] {
       *ok = 1;
       RBD_UNROLL
@@ -358,7 +425,7 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
         const BodyDesc<S>& b = m.body[i];
         Force<S>* U = w.U + 6 * i;
         S* Dinv = w.Dinv + 36 * i;
-        if (!minv_joint_inertia(b, w.X_world[i], w.S_world + 6 * i, w.IA[i], U, Dinv)) *ok = 0;
+        if (!minv_joint_inertia(b, w.X_world[i], w.S_world + 6 * i, w.IA[i], U, Dinv, leave_world)) *ok = 0;
         else if (b.parent >= 0) add_articulated_residual(b.nv, w.IA[i], U, Dinv, w.IA[b.parent]);
       }
     });
@@ -370,16 +437,19 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 }
 
 // M⁻¹(q), nv x nv row-major. dense: mirror the upper triangle into the lower;
-// otherwise the strict lower triangle is zero. false if M is not PD.
-template <typename S> RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv) {
+// otherwise the strict lower triangle is zero. leave_world: the passes in world
+// coordinates (minv_backward_pass; the derivative passes reuse what they leave in w),
+// else a tree with a free root in its root's frame. false if M is not PD.
+template <typename S>
+RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
   if (m.has_mimic) {
     S* M = w.dense;
     crba(m, w, q, M);
     if (!spd_inverse(M, nv, Minv)) return false;
   } else {
-    if (!minv_backward_pass(m, w, q, Minv)) return false;
-    minv_forward_pass(m, w, Minv);
+    if (!minv_backward_pass(m, w, q, Minv, leave_world)) return false;
+    minv_forward_pass(m, w, Minv, leave_world);
   }
   for (int r = 1; r < nv; ++r)
     for (int c = 0; c < r; ++c) Minv[r * nv + c] = dense ? Minv[c * nv + r] : S(0);
@@ -387,10 +457,11 @@ template <typename S> RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, c
 }
 
 // qdd = M⁻¹ (tau - c(q, qd, f_ext)): forward dynamics through the inverse.
-// writes w.dense (M⁻¹ in its first nv² entries) and qdd (nv).
+// writes w.dense (M⁻¹ in its first nv² entries; with mimic joints M's Cholesky
+// factor) and qdd (nv). leave_world: as minv's
 template <typename S>
 RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
-                             const S* fext, S gravity, S* qdd) {
+                             const S* fext, S gravity, S* qdd, bool leave_world = false) {
   const int nv = m.nv;
   S* r = w.dense + nv * nv + nv;  // residual tau - c
   rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
@@ -403,7 +474,7 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
     cholesky_solve(Mi, nv, qdd);
     return true;
   }
-  if (!minv(m, w, q, true, Mi)) return false;
+  if (!minv(m, w, q, true, Mi, leave_world)) return false;
   for (int row = 0; row < nv; ++row) {
     S acc = S(0);
     for (int c = 0; c < nv; ++c) acc += Mi[row * nv + c] * r[c];
