@@ -74,7 +74,7 @@ __global__ void stages(ModelView<S> call_model, const S* q, const S* qd, const S
         case 2: crba(m, w, q, D1); break;
         case 3: minv(m, w, q, true, w.dense); break;
         case 4: aba(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); break;
-        case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity); break;
+        case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, false, true); break;
         case 6: rnea_derivatives_backward_pass(m, w, D1, D2, static_cast<S*>(nullptr)); break;
         case 7: apply_neg_minv(m, w, D1, nv); break;  // (w.dense holds stage 3's M⁻¹)
         case 8: aba_derivatives(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, D1, D2); break;

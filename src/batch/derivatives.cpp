@@ -168,8 +168,8 @@ void inverse_dynamics_gradient_fpass(const Model& m, long B, const double* q, co
   const ModelView<double> mv = m.view();
   const long blk = static_cast<long>(m.nb()) * 36;
   for (long s = 0; s < B; ++s) {
-    rnea_derivatives_forward_pass(mv, w, q + s * m.nq, qd + s * m.nv, qdd ? qdd + s * m.nv : nullptr, static_cast<const double*>(nullptr),
-                                  gravity);
+    rnea_derivatives_forward_pass(mv, w, q + s * m.nq, qd + s * m.nv, qdd ? qdd + s * m.nv : nullptr,
+                                  static_cast<const double*>(nullptr), gravity, false, true);  // (world quantities out)
     store_cols(m, wrt == 0 ? w.dVdq : w.S_world, out1 + s * blk);
     store_cols(m, wrt == 0 ? w.dAdq : w.dAdv, out2 + s * blk);
   }
@@ -188,7 +188,8 @@ void inverse_dynamics_gradient_bpass(const Model& m, long B, const double* q, co
   std::vector<double> other(nv * nv);
   for (long s = 0; s < B; ++s) {
     // composites from the state, DoF columns from the caller
-    rnea_derivatives_forward_pass(mv, w, q + s * m.nq, qd + s * nv, qdd ? qdd + s * nv : nullptr, static_cast<const double*>(nullptr), gravity);
+    rnea_derivatives_forward_pass(mv, w, q + s * m.nq, qd + s * nv, qdd ? qdd + s * nv : nullptr,
+                                  static_cast<const double*>(nullptr), gravity, false, true);  // (world: as the registry's)
     load_cols(m, in1 + s * blk, wrt == 0 ? w.dVdq : w.S_world);
     load_cols(m, in2 + s * blk, wrt == 0 ? w.dAdq : w.dAdv);
     double* o = dtau + s * nv * nv;

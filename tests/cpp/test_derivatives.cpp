@@ -3,8 +3,10 @@
 // floating). Pinocchio equivalence is in tests/python; this suite also runs
 // under the sanitizers. Also: ∇FD's tree-sparse product against the dense one
 // (bit for bit), the body-frame CRBA against the world-frame pass, the team
-// forms against the serial passes (bit for bit), ∇FD's acceleration against
-// ABA's, and M⁻¹ in a free root's frame against the world frame's.
+// forms against the serial passes (bit for bit, ∇FD on a free root to 1e-11),
+// ∇FD's acceleration against ABA's, and M⁻¹ and the derivatives in a free
+// root's frame (M M⁻¹ = 1, the world frame's results, the base's position not
+// entering, bit for bit).
 #include <gtest/gtest.h>
 
 #include "test_models.hpp"
@@ -284,54 +286,101 @@ TEST_P(Derivatives, ForwardDynamicsGradientsAccelerationIsAbas) {
   }
 }
 
-// minv computes a tree with a free root in the root's own frame (its S the identity), unless asked to
-// leave world-frame placements for the derivative passes. M M⁻¹ = 1 in that frame with the base near
-// the origin and far from it (where the world frame's lever arms are long and its M⁻¹ loses digits:
-// on floating Atlas 1e-8 relative 100 m out), the two frames agree near the origin, and the column
-// path (the team kernels') agrees with the passes in the root frame. Without a free root there is one
-// frame: the same result bit for bit
-TEST_P(Derivatives, MinvInTheRootFrameIsTheInverse) {
-  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
-  WorkspaceBuffer buf(m);
-  Workspace<double>& w = buf.get();
-  const ModelView<double> mv = m.view();
-  const bool free_root = !mv.has_mimic && m.bodies[0].type == kFree;
-  const int nv = m.nv;
-  std::mt19937 rng(29);
-  std::uniform_real_distribution<double> U(-1, 1);
-  std::vector<double> q0 = m.neutral(), d(nv), q(m.nq);
-  for (int trial = 0; trial < 3; ++trial) {
-    for (auto& x : d) x = 2 * U(rng);
-    integrate(mv, q0.data(), d.data(), q.data());
-    if (free_root) q[0] += 100 * trial, q[1] -= 50 * trial, q[2] += 20 * trial;
-    std::vector<double> Mr(nv * nv), Mw(nv * nv), M(nv * nv), Mc(nv * nv, 0.0), scratch(nv * nv);
-    ASSERT_TRUE(minv(mv, w, q.data(), true, Mr.data()));
-    ASSERT_TRUE(minv(mv, w, q.data(), true, Mw.data(), true));
-    if (!free_root) {
-      EXPECT_EQ(std::memcmp(Mr.data(), Mw.data(), Mr.size() * sizeof(double)), 0) << "trial " << trial;
-      continue;
+// minv computes a tree with a free root in the root's own frame (world.hpp's reference frame; its S the
+// identity) unless asked for world coordinates. On every floating model: M M⁻¹ = 1 in that frame with
+// the base near the origin and far from it, to n u max|M| max|M⁻¹| (u = 1.1e-16, the unit roundoff),
+// which the world frame's M⁻¹ misses 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on Atlas, against
+// 5e-14 and 2e-13 here); the two frames agree near the origin; and the column path (the team kernels')
+// agrees with the passes in the root frame
+TEST(RootFrame, MinvIsTheInverse) {
+  for (const ModelCase& c : all_cases()) {
+    const Model m = Model::from_urdf_file(c.path, c.floating);
+    if (!c.floating || m.general_path()) continue;  // (no free root; mimic: M's Cholesky inverse, in no frame)
+    SCOPED_TRACE(c.path);
+    WorkspaceBuffer buf(m);
+    Workspace<double>& w = buf.get();
+    const ModelView<double> mv = m.view();
+    ASSERT_EQ(m.bodies[0].type, kFree);
+    const int nv = m.nv;
+    std::mt19937 rng(29);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::vector<double> q0 = m.neutral(), d(nv), q(m.nq);
+    for (int trial = 0; trial < 3; ++trial) {
+      for (auto& x : d) x = 2 * U(rng);
+      integrate(mv, q0.data(), d.data(), q.data());
+      q[0] += 100 * trial, q[1] -= 50 * trial, q[2] += 20 * trial;
+      std::vector<double> Mr(nv * nv), Mw(nv * nv), M(nv * nv), Mc(nv * nv, 0.0), scratch(nv * nv);
+      ASSERT_TRUE(minv(mv, w, q.data(), true, Mr.data()));
+      ASSERT_TRUE(minv(mv, w, q.data(), true, Mw.data(), true));
+      crba(mv, w, q.data(), M.data());
+      double scale = 0, err = 0, ident = 0, mnorm = 0;
+      for (int r = 0; r < nv; ++r)
+        for (int k = 0; k < nv; ++k) {
+          scale = std::max(scale, std::abs(Mr[r * nv + k]));
+          mnorm = std::max(mnorm, std::abs(M[r * nv + k]));
+          err = std::max(err, std::abs(Mr[r * nv + k] - Mw[r * nv + k]));
+          double s = 0;
+          for (int l = 0; l < nv; ++l) s += M[r * nv + l] * Mr[l * nv + k];
+          ident = std::max(ident, std::abs(s - (r == k ? 1.0 : 0.0)));
+        }
+      EXPECT_LT(ident, 1.1e-16 * nv * mnorm * scale) << "trial " << trial;
+      if (trial == 0) EXPECT_LT(err, 1e-10 * scale);
+      ASSERT_TRUE(minv_backward_pass(mv, w, q.data(), scratch.data(), false));
+      for (int k = 0; k < nv; ++k) minv_column(mv, w, k, Mc.data());
+      err = 0;
+      for (int r = 0; r < nv; ++r)
+        for (int k = r; k < nv; ++k) err = std::max(err, std::abs(Mr[r * nv + k] - Mc[r * nv + k]));
+      EXPECT_LT(err, 1e-13 * scale) << "trial " << trial;
     }
-    crba(mv, w, q.data(), M.data());
-    double scale = 0, err = 0, ident = 0, mnorm = 0;
-    for (int r = 0; r < nv; ++r)
-      for (int c = 0; c < nv; ++c) {
-        scale = std::max(scale, std::abs(Mr[r * nv + c]));
-        mnorm = std::max(mnorm, std::abs(M[r * nv + c]));
-        err = std::max(err, std::abs(Mr[r * nv + c] - Mw[r * nv + c]));
-        double s = 0;
-        for (int k = 0; k < nv; ++k) s += M[r * nv + k] * Mr[k * nv + c];
-        ident = std::max(ident, std::abs(s - (r == c ? 1.0 : 0.0)));
-      }
-    // n ε |M| |M⁻¹|, a backward-stable bound. The world frame's M⁻¹ is 10-20x further from it near the
-    // origin and misses it 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on Atlas; here 5e-14, 1e-13)
-    EXPECT_LT(ident, 1e-16 * nv * mnorm * scale) << "trial " << trial;
-    if (trial == 0) EXPECT_LT(err, 1e-10 * scale);
-    ASSERT_TRUE(minv_backward_pass(mv, w, q.data(), scratch.data(), false));
-    for (int c = 0; c < nv; ++c) minv_column(mv, w, c, Mc.data());
-    err = 0;
-    for (int r = 0; r < nv; ++r)
-      for (int c = r; c < nv; ++c) err = std::max(err, std::abs(Mr[r * nv + c] - Mc[r * nv + c]));
-    EXPECT_LT(err, 1e-13 * scale) << "trial " << trial;
+  }
+}
+
+// With a free root, M⁻¹, ∇ID and ∇FD are computed in the root's frame, where the base's position never
+// enters: moving the base 100 m changes no bit of them (in world coordinates it changed them by 1e-10 to
+// 4e-9 relative). Near the origin ∇ID and M⁻¹ agree with the world frame's passes to 1e-11 (the world
+// frame's own rounding, 3e-12 seen on floating Atlas); a mimic model (M⁻¹ from the world-frame CRBA)
+// only that
+TEST(RootFrame, BasePositionDoesNotEnter) {
+  for (const ModelCase& c : all_cases()) {
+    if (!c.floating) continue;
+    SCOPED_TRACE(c.path);
+    const Model m = Model::from_urdf_file(c.path, c.floating);
+    WorkspaceBuffer buf(m);
+    Workspace<double>& w = buf.get();
+    const ModelView<double> mv = m.view();
+    ASSERT_EQ(m.bodies[0].type, kFree);
+    const int nv = m.nv, nb = m.nb();
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::vector<double> q0 = m.neutral(), d(nv), q(m.nq), qd(nv), tau(nv), fext(6 * nb);
+    for (auto& x : d) x = 2 * U(rng);
+    for (auto& x : qd) x = 2 * U(rng);
+    for (auto& x : tau) x = 10 * U(rng);
+    for (auto& x : fext) x = U(rng);
+    integrate(mv, q0.data(), d.data(), q.data());
+    // ∂tau/∂q, ∂tau/∂qd at ABA's qdd, M⁻¹ (in the frame asked for), then qdd, ∂qdd/∂q, ∂qdd/∂qd
+    auto all = [&](const std::vector<double>& qq, bool leave_world) {
+      std::vector<double> a(nv), Dq(nv * nv), Dv(nv * nv), Mi(nv * nv), Fq(nv * nv), Fv(nv * nv);
+      EXPECT_TRUE(aba(mv, w, qq.data(), qd.data(), tau.data(), fext.data(), -9.81, a.data()));
+      rnea_derivatives(mv, w, qq.data(), qd.data(), a.data(), fext.data(), -9.81, Dq.data(), Dv.data(),
+                       static_cast<double*>(nullptr), false, leave_world);
+      EXPECT_TRUE(minv(mv, w, qq.data(), true, Mi.data(), leave_world));
+      EXPECT_TRUE(aba_derivatives(mv, w, qq.data(), qd.data(), tau.data(), fext.data(), -9.81, a.data(), Fq.data(),
+                                  Fv.data()));
+      std::vector<double> out;
+      for (const auto* v : {&Dq, &Dv, &Mi, &a, &Fq, &Fv}) out.insert(out.end(), v->begin(), v->end());
+      return out;
+    };
+    const std::vector<double> at_q = all(q, false), world = all(q, true);
+    const size_t n_frame = 3ul * nv * nv;  // (∇ID and M⁻¹: what leave_world changes)
+    EXPECT_LT(max_rel_err(std::vector<double>(world.begin(), world.begin() + n_frame),
+                          std::vector<double>(at_q.begin(), at_q.begin() + n_frame)),
+              1e-11);
+    if (m.general_path()) continue;  // (mimic: M is the world-frame CRBA's, and M⁻¹ its Cholesky inverse)
+    std::vector<double> moved = q;
+    moved[0] += 100, moved[1] -= 50, moved[2] += 20;
+    const std::vector<double> there = all(moved, false);
+    EXPECT_EQ(std::memcmp(at_q.data(), there.data(), at_q.size() * sizeof(double)), 0);
   }
 }
 

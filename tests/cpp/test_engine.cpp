@@ -288,7 +288,7 @@ std::vector<double> reference(const Model& m, int op, const Samples& s, long b) 
     case 5:
       ok = rbd::aba_derivatives(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, tmp.data(), out.data(),
                                 out.data() + nn);
-      ok = ok && rbd::minv(mv, w, q, true, out.data() + 2 * nn, true);  // (the world frame's, as aba_derivatives')
+      ok = ok && rbd::minv(mv, w, q, true, out.data() + 2 * nn);
       break;
     default:
       if (op < 12)

@@ -20,7 +20,7 @@ template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<
     crba(m, w, q, w.dense);
     return cholesky(w.dense, m.nv);
   }
-  return minv(m, w, q, true, w.dense, true);
+  return minv(m, w, q, true, w.dense);
 }
 
 // D (nv x cols, row-major) <- -M⁻¹ D, after prepare_minv. Without mimic
@@ -99,9 +99,9 @@ template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>&
 template <typename S>
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
-  // M⁻¹ (prepare_minv's) in world coordinates: its backward pass leaves the world placements and
-  // body inertias that the derivative passes then reuse (the mimic path's CRBA does not)
-  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd, true)) return false;
+  // M⁻¹ (prepare_minv's) first: its backward pass leaves the placements and body inertias that the
+  // derivative passes then reuse, in its frame (a free root's; the mimic path's CRBA leaves none)
+  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     if (tree_sparse_product_pays(m)) {
@@ -142,7 +142,7 @@ RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace
   if (!qdd) qdd = r + nv;
   int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
   const S* Minv = w.dense;
-  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok, true); },
+  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok); },
            [&] {
              rnea(m, wr, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
              for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
@@ -190,7 +190,8 @@ RBD_HD void external_force_map(const ModelView<S>& m, Workspace<S>& w, const S* 
 
 // body Jacobians in body coordinates, transposed and negated:
 // dtau_dfext (nb x nv x 6): [b][r][c] = ∂tau_r/∂f_ext_b[c] = -(J_b)[c][r];
-// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world
+// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world (M⁻¹'s, in its
+// reference frame: world.hpp)
 template <typename S>
 RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, S* dtau_dfext, S* dqdd_dfext) {
   const int nv = m.nv, nb = m.nb;

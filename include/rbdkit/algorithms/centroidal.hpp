@@ -358,7 +358,7 @@ RBD_HD bool centroidal_dynamics_derivatives(const ModelView<S>& m, Workspace<S>&
                                             const S* qdd, S* dh_dq, S* dhdot_dq, S* dhdot_dv, S* dhdot_da,
                                             S* h = nullptr, S* hdot = nullptr) {
   const int nv = m.nv;
-  rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), S(0));
+  rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), S(0), false, true);
   Inertia<S> total;
   Force<S> h0, f0;
   centroidal_derivatives_backward_pass(m, w, dh_dq, dhdot_dq, dhdot_dv, dhdot_da, total, h0, f0);

@@ -214,7 +214,7 @@ template <typename S> RBD_HD void so_zero(int nv, S* a, S* b, S* c, S* d) {
 template <typename S>
 RBD_HD void idsva_so_world_frame(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                  S gravity, S* d2tau_dq2, S* d2tau_dqd2, S* d2tau_dqdqd, S* dM_dq) {
-  rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity);
+  rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, false, true);
   so_zero(m.nv, d2tau_dq2, d2tau_dqd2, d2tau_dqdqd, dM_dq);
   for (int c = m.nb - 1; c >= 0; --c) {
     // the path from c to the root

@@ -9,8 +9,8 @@
 //   forward:   P_i = ∂a_i/∂tau                (columns ≥ v_idx)
 //              Minv_i· -= D⁻¹ Uᵀ P_λ,  P_i = P_λ + S_i Minv_i·
 //
-// Everything is in world coordinates: the articulated inertias pass to the
-// parent without a congruence transform, and the O(n²) column work is dot
+// Everything is in one inertial frame, the world's or a free root's (world.hpp's
+// reference frame): the articulated inertias pass to the parent without a congruence transform, and the O(n²) column work is dot
 // products and axpys (no column is ever transformed). Since a column of
 // subtree(i) only ever receives contributions from inside that subtree, one
 // shared 6 x nv array holds every F_i.
@@ -23,6 +23,7 @@
 #pragma once
 
 #include "rbdkit/algorithms/aba.hpp"
+#include "rbdkit/algorithms/world.hpp"
 
 namespace rbd {
 
@@ -40,12 +41,6 @@ template <typename S> RBD_HD void neg_dinv_times(int n, const S* Dinv, const S* 
     for (int l = 0; l < n; ++l) acc -= Dinv[k * n + l] * x[l];
     out[k * stride] = acc;
   }
-}
-
-// a free root whose tree minv computes in the root's own frame (not leave_world): its S is then the
-// identity, and its descendants' placements are relative to it
-template <typename S> RBD_HD bool in_root_frame(const BodyDesc<S>& b, bool leave_world) {
-  return !leave_world && b.type == kFree && b.parent < 0;
 }
 
 // U = IA S and D⁻¹ for body b's joint, IA and the subspace columns Sw in minv's frame (the world's or
@@ -178,31 +173,19 @@ RBD_HD void mat6_times_rows(const Mat6<S>& A, const S* RBD_RESTRICT in, int is, 
 }
 
 // backward pass: articulated inertias, D⁻¹, the subtree rows of M⁻¹.
-// writes w.X_parent (not a free root's, unless leave_world), w.X_world, w.Ic (the body inertias), w.IA,
-// w.U (not a free root's), w.Dinv, w.S_world, w.F (6 x nv), Minv (upper part), all in world coordinates
-// when leave_world (the derivative passes reuse them); otherwise a tree with a free root in its root's
-// frame (X_world the placement relative to it; M⁻¹ does not depend on the frame, and the root's S is
-// then the identity: no change of frame for its D, its rows or its P). false if some D is not
-// positive definite.
+// writes w.X_parent, w.X_world, w.Ic (the body inertias), w.IA, w.U (not a free root's), w.Dinv,
+// w.S_world, w.F (6 x nv), Minv (upper part), in the reference frame (world.hpp): the world's when
+// leave_world, else a tree with a free root in its root's frame (M⁻¹ does not depend on the frame, and
+// the root's S is then the identity: no change of frame for its D, its rows or its P). The derivative
+// passes reuse the placements and inertias in the same frame. false if some D is not positive definite.
 template <typename S>
 RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
   // body placements X_0i, articulated inertias start as the body inertias
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    if (in_root_frame(b, leave_world)) {
-      w.X_world[i] = Transform<S>::identity();
-      w.Ic[i] = b.I;
-    } else {
-      if (b.parent >= 0 && in_root_frame(m.body[b.parent], leave_world)) {
-        w.X_parent[i] = body_transform(b, q);
-        w.X_world[i] = w.X_parent[i];
-      } else {
-        world_placement(m, w, q, i, false);
-      }
-      w.Ic[i] = transform_inertia(w.X_world[i], b.I);
-    }
+    world_placement(m, w, q, i, false, leave_world);
+    w.Ic[i] = reference_inertia(m, w, i, leave_world);
     w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
   }
   for (int k = 0; k < nv * nv; ++k) Minv[k] = S(0);
@@ -271,7 +254,7 @@ RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* 
 
 // body i's forward step in column c >= v_idx: Minv_i,c -= D⁻¹ Uᵀ P_λ,c, P_i,c = P_λ,c + S Minv_i,c (the
 // root has no P_λ). P and Pp point at column c of body i's and its parent's P (Pp null at a root), the
-// column's six entries rs apart. reads w.U, w.S_world (world frame), w.Dinv; writes column c of P and
+// column's six entries rs apart. reads w.U, w.S_world (the reference frame), w.Dinv; writes column c of P and
 // of Minv
 template <typename S>
 RBD_HD void minv_forward_step(const ModelView<S>& m, Workspace<S>& w, int i, int c, S* Minv, S* P, const S* Pp,
@@ -381,8 +364,7 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
 }
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
-// body inertias side by side (world_placements_team; in a free root's frame the chain X_0i starts at
-// the identity there, as minv_backward_pass's does), the articulated inertias U, D⁻¹ (the only chain:
+// body inertias side by side (world_placements_team, in minv_backward_pass's frame), the articulated inertias U, D⁻¹ (the only chain:
 // IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every column side by side (minv_column),
 // then the lower triangle (mirrored when dense, else zero). The same values as minv (to the signs of
 // zeros; leave_world as minv's). ok: where the team writes whether every D was positive definite (read
@@ -394,30 +376,13 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
     *ok = minv(m, w, q, dense, Minv, leave_world);
   } else {
     const int nv = m.nv;
-    auto inertias = [&](int i) {
-      const BodyDesc<S>& b = m.body[i];
-      w.Ic[i] = in_root_frame(b, leave_world) ? b.I : transform_inertia(w.X_world[i], b.I);
-      w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
-    };
-    if (leave_world) {
-      world_placements_team(t, m, w, q, true, inertias);
-    } else {
-      t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
-      t.one([&] {
-        RBD_UNROLL
-        for (int i = 0; i < m.nb; ++i) {
-          const int p = m.body[i].parent;
-          if (in_root_frame(m.body[i], false)) w.X_world[i] = Transform<S>::identity();
-          else if (p >= 0 && !in_root_frame(m.body[p], false)) w.X_world[i] = w.X_world[p] * w.X_parent[i];
-          else w.X_world[i] = w.X_parent[i];
-        }
-      });
-      t.each(m.nb, [&](long i) {
-        const BodyDesc<S>& b = m.body[i];
-        for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
-        inertias(static_cast<int>(i));
-      });
-    }
+    world_placements_team(
+        t, m, w, q, true,
+        [&](int i) {
+          w.Ic[i] = reference_inertia(m, w, i, leave_world);
+          w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
+        },
+        leave_world);
     t.one([&] {
       *ok = 1;
       RBD_UNROLL
@@ -438,8 +403,8 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 
 // M⁻¹(q), nv x nv row-major. dense: mirror the upper triangle into the lower;
 // otherwise the strict lower triangle is zero. leave_world: the passes in world
-// coordinates (minv_backward_pass; the derivative passes reuse what they leave in w),
-// else a tree with a free root in its root's frame. false if M is not PD.
+// coordinates, else a tree with a free root in its root's frame (minv_backward_pass,
+// world.hpp). false if M is not PD.
 template <typename S>
 RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
   const int nv = m.nv;

@@ -1,7 +1,8 @@
 // rbdkit/algorithms/rnea_derivatives.hpp — analytical first derivatives of
 // inverse dynamics, ∂tau/∂q and ∂tau/∂qd, in O(n·d) (d: tree depth), after
 // Carpentier & Mansard, "Analytical derivatives of rigid body dynamics
-// algorithms" (RSS 2018), in world coordinates.
+// algorithms" (RSS 2018), in world coordinates (or, by default in rnea_derivatives,
+// a free root's frame: world.hpp).
 //
 // In the world frame a tangent step δ on DoF k moves the whole subtree of k
 // rigidly with the twist s_k δ. Every world quantity attached to that subtree
@@ -24,8 +25,8 @@
 
 namespace rbd {
 
-// body i's momentum, net force and inertia variation in the world frame, from its world inertia
-// w.Ic, velocity and acceleration.  writes w.h, w.f, w.B of body i
+// body i's momentum, net force and inertia variation in the reference frame (world.hpp), from its
+// inertia w.Ic, velocity and acceleration there.  writes w.h, w.f, w.B of body i
 template <typename S>
 RBD_HD void rnea_derivatives_body_terms(const ModelView<S>&, Workspace<S>& w, int i, const S* fext) {
   const Inertia<S>& oI = w.Ic[i];
@@ -35,22 +36,25 @@ RBD_HD void rnea_derivatives_body_terms(const ModelView<S>&, Workspace<S>& w, in
   w.B[i] = inertia_variation(oI, w.v[i]);
 }
 
-// forward pass: world placements, subspace columns, velocities, accelerations,
-// column sensitivities, and per-body inertia, momentum, force and B.
+// forward pass: placements, subspace columns, velocities, accelerations, column sensitivities, and
+// per-body inertia, momentum, force and B, in the reference frame (world.hpp: the world's when
+// leave_world, else a free root's).
 //   q (nq), qd (nv), qdd (nv or null), fext (nb x 6 body frame or null); placed:
-//   w.X_world, w.S_world and w.Ic (the world body inertias) already hold q's
-//   placement (minv_backward_pass leaves them so), which is then not redone
-//   writes w.X_parent, w.X_world, w.S_world, w.v, w.a (world, gravity included), w.dVdq,
+//   w.X_parent, w.X_world, w.S_world and w.Ic (the body inertias) already hold q's
+//   placement in that frame (minv_backward_pass leaves them so, given the same leave_world),
+//   which is then not redone
+//   writes w.X_parent, w.X_world, w.S_world, w.v, w.a (gravity included), w.dVdq,
 //   w.dAdq, w.dAdv, w.Ic, w.h, w.f, w.B
 template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
-                                          const S* qdd, const S* fext, S gravity, bool placed = false) {
+                                          const S* qdd, const S* fext, S gravity, bool placed,
+                                          bool leave_world) {
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
-    // placement, world-frame subspace, velocity, acceleration, column sensitivities
-    if (!placed) world_placement(m, w, q, i);
-    world_motion(m, w, i, qd, qdd, gravity, true, true);
-    if (!placed) w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
+    // placement, subspace, velocity, acceleration, column sensitivities
+    if (!placed) world_placement(m, w, q, i, true, leave_world);
+    world_motion(m, w, i, qd, qdd, gravity, true, true, leave_world);
+    if (!placed) w.Ic[i] = reference_inertia(m, w, i, leave_world);
     rnea_derivatives_body_terms(m, w, i, fext);
   }
 }
@@ -61,22 +65,26 @@ RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w
 // terms side by side. The same values, each in the same order
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
-                                          const S* qd, const S* qdd, const S* fext, S gravity, bool placed) {
+                                          const S* qd, const S* qdd, const S* fext, S gravity, bool placed,
+                                          bool leave_world) {
   // vJ = s qd and aJ = s qdd, parked in w.v and w.a until the chain adds the parent's motion
   auto own_motion = [&](int i) { world_joint_motion(m, w, i, qd, qdd, true, w.v[i], w.a[i]); };
   if (placed) {
     t.each(m.nb, [&](long i) { own_motion(static_cast<int>(i)); });
   } else {
-    world_placements_team(t, m, w, q, true, [&](int i) {
-      w.Ic[i] = transform_inertia(w.X_world[i], m.body[i].I);
-      own_motion(i);
-    });
+    world_placements_team(
+        t, m, w, q, true,
+        [&](int i) {
+          w.Ic[i] = reference_inertia(m, w, i, leave_world);
+          own_motion(i);
+        },
+        leave_world);
   }
   t.one([&] {  // v_i = v_λ + vJ, a_i = a_λ + aJ + v_i × vJ, parents first
     RBD_UNROLL
     for (int i = 0; i < m.nb; ++i) {
       Motion<S> vp, ap;
-      parent_motion(m, w, i, gravity, true, vp, ap);
+      parent_motion(m, w, i, gravity, true, vp, ap, leave_world);
       const Motion<S> vJ = w.v[i];
       w.v[i] = vp + vJ;
       w.a[i] = ap + w.a[i] + cross(w.v[i], vJ);
@@ -85,7 +93,7 @@ RBD_HD void rnea_derivatives_forward_team(const Team& t, const ModelView<S>& m, 
   t.each(m.nb, [&](long i_) {
     const int i = static_cast<int>(i_);
     Motion<S> vp, ap;
-    parent_motion(m, w, i, gravity, true, vp, ap);
+    parent_motion(m, w, i, gravity, true, vp, ap, leave_world);
     motion_sensitivities(m, w, i, vp, ap);
     rnea_derivatives_body_terms(m, w, i, fext);
   });
@@ -172,12 +180,14 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
 
 // ∂tau/∂q and ∂tau/∂qd (nv x nv each, row-major) of tau = ID(q, qd, qdd, f_ext);
 // qdd and fext may be null (zero). tau (nv) is written too when not null.
-// placed: as rnea_derivatives_forward_pass's
+// placed, leave_world: as rnea_derivatives_forward_pass's (here a tree with a free root is in the
+// root's frame by default: the derivatives do not depend on the frame, and no lever arm there is
+// longer than the robot)
 template <typename S>
 RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                              const S* fext, S gravity, S* dtau_dq, S* dtau_dqd, S* tau = nullptr,
-                             bool placed = false) {
-  rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed);
+                             bool placed = false, bool leave_world = false) {
+  rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed, leave_world);
   rnea_derivatives_backward_pass(m, w, dtau_dq, dtau_dqd, tau);
 }
 
@@ -188,13 +198,13 @@ RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q,
 template <typename S, typename Team>
 RBD_HD void rnea_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                   const S* qdd, const S* fext, S gravity, S* dtau_dq, S* dtau_dqd,
-                                  bool placed = false) {
+                                  bool placed = false, bool leave_world = false) {
   t.each(static_cast<long>(m.nv) * m.nv, [&](long k) { dtau_dq[k] = S(0), dtau_dqd[k] = S(0); });
   if constexpr (!Team::cooperative) {
-    rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed);
+    rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed, leave_world);
     rnea_derivatives_composites(m, w);
   } else {
-    rnea_derivatives_forward_team(t, m, w, q, qd, qdd, fext, gravity, placed);
+    rnea_derivatives_forward_team(t, m, w, q, qd, qdd, fext, gravity, placed, leave_world);
     t.each(4, [&](long part) {  // the composites, each of the four sums on its own thread
       RBD_UNROLL
       for (int i = m.nb - 1; i >= 0; --i) {

@@ -1,7 +1,8 @@
-// rbdkit/algorithms/world.hpp — the world-coordinate kinematics that the
-// world-frame algorithms (M⁻¹, derivatives, energy, regressors, centroidal,
-// CRBA on the general path) share, one body at a time so each algorithm adds
-// its own per-body work in the same sweep. Bodies in order (parents first).
+// rbdkit/algorithms/world.hpp — the kinematics in one inertial reference frame
+// (the world's, or a free root's: below) that M⁻¹, the derivatives, energy,
+// regressors, centroidal and CRBA on the general path share, one body at a
+// time so each algorithm adds its own per-body work in the same sweep. Bodies
+// in order (parents first).
 #pragma once
 
 #include "rbdkit/model/team.hpp"
@@ -9,33 +10,61 @@
 
 namespace rbd {
 
-// X_λi and X_0i = X_0λ X_λi of body i; with_subspace: also its motion
-// subspace columns in the world frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
+// The reference frame. The world's, or (leave_world false) for a tree with a free root, that root's
+// own frame at q: an inertial frame like the world's (every algorithm on these placements holds in
+// either), in which the root's S is the identity and the base's position never enters, so no lever arm
+// is longer than the robot (in the world's, 100 m from the origin, M⁻¹ keeps 4 digits fewer). Gravity
+// there is R_0rᵀ g (parent_motion). M⁻¹, forward dynamics through it and the first derivatives
+// (rnea_derivatives, aba_derivatives) take the root's; the passes whose outputs or later steps are
+// world quantities (the ∇ID per-pass helpers, second order, centroidal, energy, regressors) the world's
+// (minv's split passes take the root's: their rows of M⁻¹ do not depend on the frame).
+template <typename S> RBD_HD bool in_root_frame(const BodyDesc<S>& b, bool leave_world) {
+  return !leave_world && b.type == kFree && b.parent < 0;
+}
+
+// X_λi and X_0i = X_0λ X_λi of body i (X_0i relative to the reference frame: the identity for a root
+// in_root_frame, X_λi for its children); with_subspace: also its motion subspace columns in that
+// frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
 template <typename S>
-RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true) {
+RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true,
+                            bool leave_world = true) {
   const BodyDesc<S>& b = m.body[i];
   w.X_parent[i] = body_transform(b, q);
-  w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
+  if (in_root_frame(b, leave_world)) w.X_world[i] = Transform<S>::identity();
+  else if (b.parent >= 0 && !in_root_frame(m.body[b.parent], leave_world))
+    w.X_world[i] = w.X_world[b.parent] * w.X_parent[i];
+  else w.X_world[i] = w.X_parent[i];
   if (with_subspace)
     for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
 }
 
-// the parent's world-frame velocity and acceleration (the root's: 0 and -g; with_acc false: a
+// body i's inertia in the reference frame (a root in_root_frame's is its own, not transformed)
+template <typename S>
+RBD_HD Inertia<S> reference_inertia(const ModelView<S>& m, const Workspace<S>& w, int i, bool leave_world) {
+  const BodyDesc<S>& b = m.body[i];
+  return in_root_frame(b, leave_world) ? b.I : transform_inertia(w.X_world[i], b.I);
+}
+
+// the parent's velocity and acceleration in the reference frame (a root's: 0 and -g, g = (0, 0,
+// gravity) in the world, R_0rᵀ g in a root's frame with R_0r its w.X_parent; with_acc false: a
 // parent's acceleration is not read, 0)
 template <typename S>
 RBD_HD void parent_motion(const ModelView<S>& m, const Workspace<S>& w, int i, S gravity, bool with_acc,
-                          Motion<S>& vp, Motion<S>& ap) {
+                          Motion<S>& vp, Motion<S>& ap, bool leave_world = true) {
   const int p = m.body[i].parent;
   vp = Motion<S>::zero(), ap = Motion<S>::zero();
   if (p >= 0) {
     vp = w.v[p];
     if (with_acc) ap = w.a[p];
+  } else if (in_root_frame(m.body[i], leave_world)) {
+    const Mat3<S>& R = w.X_parent[i].R;
+    ap.lin = {-gravity * R(2, 0), -gravity * R(2, 1), -gravity * R(2, 2)};
   } else {
     ap.lin.z = -gravity;
   }
 }
 
-// joint i's own motion in the world frame: vJ = s qd and (when with_acc and qdd is not null) aJ = s qdd
+// joint i's own motion in the reference frame: vJ = s qd and (when with_acc and qdd is not null) aJ = s qdd
 template <typename S>
 RBD_HD void world_joint_motion(const ModelView<S>& m, const Workspace<S>& w, int i, const S* qd, const S* qdd,
                                bool with_acc, Motion<S>& vJ, Motion<S>& aJ) {
@@ -62,14 +91,14 @@ RBD_HD void motion_sensitivities(const ModelView<S>& m, Workspace<S>& w, int i, 
   }
 }
 
-// world-frame velocity v_i = v_λ + s qd and, when with_acc, acceleration
-// a_i = a_λ + s qdd + v_i × s qd (a_0 = -g; qdd null: zero); sens: the column
+// velocity v_i = v_λ + s qd and, when with_acc, acceleration a_i = a_λ + s qdd + v_i × s qd (a_0 = -g;
+// qdd null: zero) in the reference frame (leave_world: as world_placement's); sens: the column
 // sensitivities (motion_sensitivities).  reads w.S_world of body i; writes w.v [, w.a, w.dVdq, w.dAdq, w.dAdv]
 template <typename S>
 RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S* qd, const S* qdd, S gravity,
-                         bool with_acc, bool sens) {
+                         bool with_acc, bool sens, bool leave_world = true) {
   Motion<S> vp, ap, vJ, aJ;
-  parent_motion(m, w, i, gravity, with_acc, vp, ap);
+  parent_motion(m, w, i, gravity, with_acc, vp, ap, leave_world);
   world_joint_motion(m, w, i, qd, qdd, with_acc, vJ, aJ);
   w.v[i] = vp + vJ;
   if (with_acc) w.a[i] = ap + aJ + cross(w.v[i], vJ);
@@ -78,16 +107,18 @@ RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S*
 
 // world_placement of every body on a team (model/team.hpp): the joint transforms X_λi side by side,
 // the chain X_0i = X_0λ X_λi on one thread, then each body's subspace columns (with_subspace) and
-// then_each(i) side by side. The same values as world_placement body by body
+// then_each(i) side by side. The same values as world_placement body by body (leave_world as its)
 template <typename S, typename Team, typename F>
 RBD_HD void world_placements_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
-                                  bool with_subspace, F&& then_each) {
+                                  bool with_subspace, F&& then_each, bool leave_world = true) {
   t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
   t.one([&] {
     RBD_UNROLL
     for (int i = 0; i < m.nb; ++i) {
       const int p = m.body[i].parent;
-      w.X_world[i] = p >= 0 ? w.X_world[p] * w.X_parent[i] : w.X_parent[i];
+      if (in_root_frame(m.body[i], leave_world)) w.X_world[i] = Transform<S>::identity();
+      else if (p >= 0 && !in_root_frame(m.body[p], leave_world)) w.X_world[i] = w.X_world[p] * w.X_parent[i];
+      else w.X_world[i] = w.X_parent[i];
     }
   });
   t.each(m.nb, [&](long i) {

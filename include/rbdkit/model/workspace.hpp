@@ -40,18 +40,19 @@ template <typename S> struct Workspace {
   Motion<S>* c;          // (nb)        aba: velocity-product acceleration v × vJ
   Mat6<S>* IA;           // (nb)        aba, minv: articulated inertia
   Inertia<S>* Ic;        // (nb)        crba: composite rigid-body inertia (body frame; world frame with mimics)
-  Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: world frame; a free root's unset)
-  Motion<S>* S_world;    // (nb x 6)    minv, derivatives (crba on the general path): motion subspace columns, world frame
+  Force<S>* U;           // (nb x 6)    aba, minv: U = IA·S, one force per joint DoF (minv: reference frame; a free root's unset)
+  Motion<S>* S_world;    // (nb x 6)    minv, derivatives (crba on the general path): motion subspace columns in the
+                         //             reference frame (world.hpp: the world's, or a free root's)
   S* Dinv;               // (nb x 36)   aba, minv: (Sᵀ·IA·S)⁻¹, row-major nv_j x nv_j
-  Motion<S>* dVdq;       // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (world frame)
+  Motion<S>* dVdq;       // (nb x 6)    rnea_derivatives: v_λ × s per joint DoF (reference frame)
   Motion<S>* dAdq;       // (nb x 6)    rnea_derivatives: a_λ × s + v_λ × dVdq
   Motion<S>* dAdv;       // (nb x 6)    rnea_derivatives: v × s + dVdq
-  Force<S>* h;           // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (world)
-  InertiaRate<S>* B;     // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (world)
+  Force<S>* h;           // (nb)        rnea_derivatives: momentum I·v, then its subtree sum (reference frame)
+  InertiaRate<S>* B;     // (nb)        rnea_derivatives: v ×* I - I v×, then its subtree sum (reference frame)
   S* u;                  // (nv)        aba: u = tau - Sᵀ·pA
-  S* F;                  // (6 nv)      minv: force sensitivities ∂pA/∂tau, world frame, 6 x nv (row r of every tau
+  S* F;                  // (6 nv)      minv: force sensitivities ∂pA/∂tau, reference frame, 6 x nv (row r of every tau
                          //             column at r·nv); crba: the columns Ic s riding up the tree, nv x 6
-  S* P;                  // (6 nv nb)   minv: acceleration sensitivities ∂a/∂tau, world frame, per body 6 x nv in the
+  S* P;                  // (6 nv nb)   minv: acceleration sensitivities ∂a/∂tau, reference frame, per body 6 x nv in the
                          //             serial pass, nv x 6 in minv_column (full layout only)
   // ---- second order (algorithms/idsva_so.hpp, fdsva_so.hpp); nc = nv + nb bounds the joint DoFs
   // on one root path (a mimic body adds a DoF of its own there)

@@ -314,7 +314,8 @@ template <int Wrt> struct InverseDynamicsGradientFpass {
       2, {{Wrt == 0 ? "dV_dq" : "S", shape(kNb, 6, 6)}, {Wrt == 0 ? "dA_dq" : "dA_dqd", shape(kNb, 6, 6)}},
       0b11, 0, kFull, kNoScratch, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
-    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[3]);
+    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[3], false,
+                                  true);  // (world coordinates: its outputs are world quantities)
     if (a.out[0]) store_dof_columns(m, Wrt == 0 ? w.dVdq : w.S_world, a.out[0]);
     if (a.out[1]) store_dof_columns(m, Wrt == 0 ? w.dAdq : w.dAdv, a.out[1]);
     return true;
@@ -334,7 +335,8 @@ template <int Wrt> struct InverseDynamicsGradientBpass {
       1, {{Wrt == 0 ? "dtau_dq" : "dtau_dqd", shape(kNv, kNv)}}, 0b1, 0, kFull, kScratchNvNv, kNotPositiveDefinite};
   // the composites from the state, the DoF columns from the caller
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
-    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[5]);
+    rnea_derivatives_forward_pass(m, w, a.in[0], a.in[1], a.in[2], static_cast<const S*>(nullptr), a.real[5], false,
+                                  true);  // (world coordinates, as the forward passes' outputs)
     load_dof_columns(m, a.in[3], Wrt == 0 ? w.dVdq : w.S_world);
     load_dof_columns(m, a.in[4], Wrt == 0 ? w.dAdq : w.dAdv);
     if (Wrt == 0) rnea_derivatives_backward_pass(m, w, a.out[0], a.scratch, static_cast<S*>(nullptr));
