@@ -10,8 +10,9 @@
 //              Minv_i· -= D⁻¹ Uᵀ P_λ,  P_i = P_λ + S_i Minv_i·
 //
 // Everything is in one inertial frame, the world's or a free root's (world.hpp's
-// reference frame): the articulated inertias pass to the parent without a congruence transform, and the O(n²) column work is dot
-// products and axpys (no column is ever transformed). Since a column of
+// reference frame): the articulated inertias pass to the parent without a
+// congruence transform, and the O(n²) column work is dot products and axpys (no
+// column is ever transformed). Since a column of
 // subtree(i) only ever receives contributions from inside that subtree, one
 // shared 6 x nv array holds every F_i.
 //
@@ -364,11 +365,12 @@ template <typename S> RBD_HD void minv_column(const ModelView<S>& m, Workspace<S
 }
 
 // minv on a team of threads (model/team.hpp), for a model without mimic joints: the placements and
-// body inertias side by side (world_placements_team, in minv_backward_pass's frame), the articulated inertias U, D⁻¹ (the only chain:
-// IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every column side by side (minv_column),
-// then the lower triangle (mirrored when dense, else zero). The same values as minv (to the signs of
-// zeros; leave_world as minv's). ok: where the team writes whether every D was positive definite (read
-// it after the team's next barrier). An InlineTeam runs minv
+// body inertias side by side (world_placements_team, in minv_backward_pass's frame), the articulated
+// inertias U, D⁻¹ (the only chain: IA_λ += IA - U D⁻¹ Uᵀ, children first) on one thread, then every
+// column side by side (minv_column), then the lower triangle (mirrored when dense, else zero). The
+// same values as minv (to the signs of zeros; leave_world as minv's). ok: where the team writes
+// whether every D was positive definite (read it after the team's next barrier). An InlineTeam runs
+// minv
 template <typename S, typename Team>
 RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv,
                       int* ok, bool leave_world = false) {
