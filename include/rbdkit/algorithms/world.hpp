@@ -22,18 +22,24 @@ template <typename S> RBD_HD bool in_root_frame(const BodyDesc<S>& b, bool leave
   return !leave_world && b.type == kFree && b.parent < 0;
 }
 
-// X_λi and X_0i = X_0λ X_λi of body i (X_0i relative to the reference frame: the identity for a root
-// in_root_frame, X_λi for its children); with_subspace: also its motion subspace columns in that
-// frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
+// X_0i = X_0λ X_λi of body i from its w.X_parent and its parent's w.X_world, relative to the
+// reference frame: the identity for a root in_root_frame, X_λi for its children and other roots
+template <typename S> RBD_HD void reference_placement(const ModelView<S>& m, Workspace<S>& w, int i, bool leave_world) {
+  const BodyDesc<S>& b = m.body[i];
+  if (in_root_frame(b, leave_world)) w.X_world[i] = Transform<S>::identity();
+  else if (b.parent >= 0 && !in_root_frame(m.body[b.parent], leave_world))
+    w.X_world[i] = w.X_world[b.parent] * w.X_parent[i];
+  else w.X_world[i] = w.X_parent[i];
+}
+
+// X_λi and X_0i (reference_placement) of body i; with_subspace: also its motion subspace columns in
+// the reference frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
 template <typename S>
 RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true,
                             bool leave_world = true) {
   const BodyDesc<S>& b = m.body[i];
   w.X_parent[i] = body_transform(b, q);
-  if (in_root_frame(b, leave_world)) w.X_world[i] = Transform<S>::identity();
-  else if (b.parent >= 0 && !in_root_frame(m.body[b.parent], leave_world))
-    w.X_world[i] = w.X_world[b.parent] * w.X_parent[i];
-  else w.X_world[i] = w.X_parent[i];
+  reference_placement(m, w, i, leave_world);
   if (with_subspace)
     for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
 }
@@ -114,12 +120,7 @@ RBD_HD void world_placements_team(const Team& t, const ModelView<S>& m, Workspac
   t.each(m.nb, [&](long i) { w.X_parent[i] = body_transform(m.body[i], q); });
   t.one([&] {
     RBD_UNROLL
-    for (int i = 0; i < m.nb; ++i) {
-      const int p = m.body[i].parent;
-      if (in_root_frame(m.body[i], leave_world)) w.X_world[i] = Transform<S>::identity();
-      else if (p >= 0 && !in_root_frame(m.body[p], leave_world)) w.X_world[i] = w.X_world[p] * w.X_parent[i];
-      else w.X_world[i] = w.X_parent[i];
-    }
+    for (int i = 0; i < m.nb; ++i) reference_placement(m, w, i, leave_world);
   });
   t.each(m.nb, [&](long i) {
     const BodyDesc<S>& b = m.body[i];

@@ -99,11 +99,8 @@ template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x_
   M q;
   __builtin_memcpy(&q, &shifted, sizeof q);
   q = q & 3;
-  const M swap = (q & 1) != 0;
-  V s = swap ? cr : sr;
-  V c = swap ? sr : cr;
-  s = (q & 2) != 0 ? -s : s;
-  c = ((q + 1) & 2) != 0 ? -c : c;
+  V s, c;
+  sincos_quadrant(q, sr, cr, s, c);
   const M big = (x > 1e5) | (x < -1e5) | (x != x);
   bool any = false;
   for (int l = 0; l < W; ++l) any |= big[l] != 0;

@@ -75,6 +75,14 @@ template <typename V> RBD_HD_INLINE void sincos_quarter(const V& r, V& sr, V& cr
   const V hz = 0.5 * z, w = 1.0 - hz;
   cr = w + (((1.0 - w) - hz) + z * (z * -pc));
 }
+// s, c from sin r, cos r and the quadrant q = k mod 4 (an int, or a vector of them on the packs):
+// sin and cos swap in odd quadrants, sin is negated in quadrants 2 and 3, cos in 1 and 2
+template <typename Q, typename V>
+RBD_HD_INLINE void sincos_quadrant(const Q& q, const V& sr, const V& cr, V& s, V& c) {
+  const V s1 = (q & 1) != 0 ? cr : sr, c1 = (q & 1) != 0 ? sr : cr;
+  s = (q & 2) != 0 ? -s1 : s1;
+  c = ((q + 1) & 2) != 0 ? -c1 : c1;
+}
 RBD_HD_INLINE void ssincos(double x, double& s, double& c) {
 #if defined(__CUDA_ARCH__)
   ::sincos(x, &s, &c);
@@ -91,10 +99,7 @@ RBD_HD_INLINE void ssincos(double x, double& s, double& c) {
   sincos_quarter(r, sr, cr);
   long long bits;
   __builtin_memcpy(&bits, &shifted, sizeof bits);
-  const int quadrant = static_cast<int>(bits & 3);
-  const double s1 = (quadrant & 1) ? cr : sr, c1 = (quadrant & 1) ? sr : cr;
-  s = (quadrant & 2) ? -s1 : s1;
-  c = ((quadrant + 1) & 2) ? -c1 : c1;
+  sincos_quadrant(static_cast<int>(bits & 3), sr, cr, s, c);
 #endif
 }
 RBD_HD_INLINE void ssincos(float x, float& s, float& c) {
