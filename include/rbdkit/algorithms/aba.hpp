@@ -226,7 +226,7 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
 // articulated inertia of some joint is not positive definite (e.g. a chain
 // of massless bodies), in which case qdd is undefined.
 template <typename S>
-RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
+RBD_FLATTEN RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
                 S gravity, S* qdd) {
   if (m.has_mimic) return aba_dense(m, w, q, qd, tau, fext, gravity, qdd);
   aba_forward_pass1(m, w, q, qd, fext);

@@ -21,6 +21,15 @@
 #else
 #define RBD_HD_INLINE inline
 #endif
+// an algorithm's entry point on the host: every call inside it inlined, its passes and their per-body
+// helpers one function (the compilers' size heuristics leave passes and joint visits out of line,
+// and in a large translation unit stop inlining early: a quarter of RNEA's time on the iiwa). nvcc
+// inlines device code by its own rules
+#if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
+#define RBD_FLATTEN __attribute__((flatten))
+#else
+#define RBD_FLATTEN
+#endif
 // a body or coordinate loop that nvcc unrolls whole where its trip count is a compile-time constant
 // (a per-robot instance's model: a robot's sizes and bodies as constants, cuda/instance.cuh), which
 // turns the bodies' joint types, parents and constants into immediates and keeps a chain's values in
