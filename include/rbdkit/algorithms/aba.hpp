@@ -225,8 +225,8 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
 // qdd (nv) = FD(q, qd, tau, f_ext). fext may be null. Returns false if the
 // articulated inertia of some joint is not positive definite (e.g. a chain
 // of massless bodies), in which case qdd is undefined.
-template <typename S>
-RBD_FLATTEN RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
+template <typename S> RBD_FLATTEN
+RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
                 S gravity, S* qdd) {
   if (m.has_mimic) return aba_dense(m, w, q, qd, tau, fext, gravity, qdd);
   aba_forward_pass1(m, w, q, qd, fext);

@@ -96,8 +96,8 @@ template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>&
 // derivative products need anyway, so qdd costs an RNEA and a product where ABA's three passes took
 // about twice that. It agrees with ABA's (the aba operation, the integrators' step) to rounding, not
 // bit for bit, as the team form's does (whose M⁻¹ is minv_column's, equal to the passes' to rounding).
-template <typename S>
-RBD_FLATTEN RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+template <typename S> RBD_FLATTEN
+RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
   // M⁻¹ (prepare_minv's) first: its backward pass leaves the placements and body inertias that the
   // derivative passes then reuse, in its frame (a free root's; the mimic path's CRBA leaves none)

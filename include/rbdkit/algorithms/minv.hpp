@@ -407,8 +407,8 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 // otherwise the strict lower triangle is zero. leave_world: the passes in world
 // coordinates, else a tree with a free root in its root's frame (minv_backward_pass,
 // world.hpp). false if M is not PD.
-template <typename S>
-RBD_FLATTEN RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
+template <typename S> RBD_FLATTEN
+RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
   if (m.has_mimic) {
     S* M = w.dense;
@@ -426,8 +426,8 @@ RBD_FLATTEN RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q,
 // qdd = M⁻¹ (tau - c(q, qd, f_ext)): forward dynamics through the inverse.
 // writes w.dense (M⁻¹ in its first nv² entries; with mimic joints M's Cholesky
 // factor) and qdd (nv). leave_world: as minv's
-template <typename S>
-RBD_FLATTEN RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+template <typename S> RBD_FLATTEN
+RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                              const S* fext, S gravity, S* qdd, bool leave_world = false) {
   const int nv = m.nv;
   S* r = w.dense + nv * nv + nv;  // residual tau - c

@@ -65,8 +65,8 @@ template <typename S> RBD_HD void rnea_backward_pass(const ModelView<S>& m, Work
 }
 
 // tau = ID(q, qd, qdd, f_ext). qdd and fext may be null (zero).
-template <typename S>
-RBD_FLATTEN RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
+template <typename S> RBD_FLATTEN
+RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                  const S* fext, S gravity, S* tau) {
   rnea_forward_pass(m, w, q, qd, qdd, fext, gravity);
   rnea_backward_pass(m, w, tau);

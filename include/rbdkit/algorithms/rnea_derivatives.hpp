@@ -183,8 +183,8 @@ RBD_HD void rnea_derivatives_backward_pass(const ModelView<S>& m, Workspace<S>& 
 // placed, leave_world: as rnea_derivatives_forward_pass's (here a tree with a free root is in the
 // root's frame by default: the derivatives do not depend on the frame, and no lever arm there is
 // longer than the robot)
-template <typename S>
-RBD_FLATTEN RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
+template <typename S> RBD_FLATTEN
+RBD_HD void rnea_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                              const S* fext, S gravity, S* dtau_dq, S* dtau_dqd, S* tau = nullptr,
                              bool placed = false, bool leave_world = false) {
   rnea_derivatives_forward_pass(m, w, q, qd, qdd, fext, gravity, placed, leave_world);

@@ -43,7 +43,8 @@ __attribute__((flatten)) bool flattened_kernel(const ModelView<double>& view, Wo
   return Op::run(RobotModel<R>::view(view), w, a);
 }
 template <class R, class Op>
-constexpr ops::Kernel<double> kernel = Op::spec.kernel == ops::kCalled ? &called_kernel<R, Op> : &flattened_kernel<R, Op>;
+constexpr ops::Kernel<double> kernel =
+    Op::spec.kernel == ops::kCalled ? &called_kernel<R, Op> : &flattened_kernel<R, Op>;
 
 // the operations an instance compiles (Ops<...>::names), and its table for the robot R
 template <class... Op> struct Ops {
