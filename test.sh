@@ -48,7 +48,7 @@ san="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-poin
 cmake -S . -B build/sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBDKIT_CUDA_CHECK=OFF -DRBDKIT_CUDA=OFF \
   -DRBDKIT_ENGINE_ARCH= \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-  -DCMAKE_CXX_FLAGS="$san -DRBDKIT_ENGINE_NO_FLATTEN" -DCMAKE_EXE_LINKER_FLAGS="$san" >/dev/null
+  -DCMAKE_CXX_FLAGS="$san -DRBDKIT_NO_FLATTEN" -DCMAKE_EXE_LINKER_FLAGS="$san" >/dev/null
 cmake --build build/sanitize -j "$JOBS"
 # (Atlas's cases are left to the plain build's ctest above: under the sanitizers they took 150 s of the
 # 360 core-seconds, for the code paths floating HyQ already covers)

@@ -30,11 +30,11 @@ namespace rbd {
 // ---- body coordinates (models off the general path: no mimic joints, subtrees contiguous)
 
 // F_c <- X* F_c for the n columns F (n x 6 row-major). Where X turns about its z axis alone (R's
-// third row and column are e_z: a joint about z whose placement is not turned; 40 of floating
-// Atlas's 150 column transforms, 4 of HyQ's 12), R's products drop to its 2 x 2 block: 24
-// operations a column where the general transform takes 42, with the same values (the dropped
-// terms are products by exact zeros and by one). The test reads a real scalar's values; a pack or
-// a dual number takes the general path
+// third row and column are e_z: a joint about z whose placement is not turned, or no turn at all;
+// 40 of floating Atlas's 150 column transforms, 4 of fixed HyQ's 12), R's products drop to its
+// 2 x 2 block: 24 operations a column where the general transform takes 42, with the same values
+// for finite columns up to the sign of a zero (the dropped terms are products by exact zeros and by
+// one). The test reads a real scalar's values; a pack or a dual number takes the general path
 template <typename S> RBD_HD void crba_act_columns(const Transform<S>& X, S* F, int n) {
   const Mat3<S>& R = X.R;
   if constexpr (std::is_floating_point<S>::value) {

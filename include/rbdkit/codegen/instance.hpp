@@ -38,18 +38,19 @@ bool called_kernel(const ModelView<double>& view, Workspace<double>& w, const op
   return Op::run(RobotModel<R>::view(view), w, a);
 }
 template <class R, class Op>
-__attribute__((flatten)) bool flattened_kernel(const ModelView<double>& view, Workspace<double>& w,
-                                               const ops::OpArgs<double>& a) {
+RBD_FLATTEN bool flattened_kernel(const ModelView<double>& view, Workspace<double>& w,
+                                  const ops::OpArgs<double>& a) {
   return Op::run(RobotModel<R>::view(view), w, a);
 }
-template <class R, class Op>
-constexpr ops::Kernel<double> kernel =
-    Op::spec.kernel == ops::kCalled ? &called_kernel<R, Op> : &flattened_kernel<R, Op>;
+template <class R, class Op> constexpr ops::Kernel<double> kernel() {
+  if constexpr (Op::spec.kernel == ops::kCalled) return &called_kernel<R, Op>;
+  else return &flattened_kernel<R, Op>;
+}
 
 // the operations an instance compiles (Ops<...>::names), and its table for the robot R
 template <class... Op> struct Ops {
   static constexpr const char* names[] = {Op::spec.name...};
-  template <class R> static constexpr Entry entries[] = {{Op::spec.name, kernel<R, Op>}...};
+  template <class R> static constexpr Entry entries[] = {{Op::spec.name, kernel<R, Op>()}...};
 };
 // the dynamics, the mass matrix and its inverse, their first derivatives and the step: what MPC and
 // trajectory optimisation call one sample at a time

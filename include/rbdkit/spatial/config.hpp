@@ -24,8 +24,9 @@
 // an algorithm's entry point on the host: every call inside it inlined, its passes and their per-body
 // helpers one function (the compilers' size heuristics leave passes and joint visits out of line,
 // and in a large translation unit stop inlining early: a quarter of RNEA's time on the iiwa). nvcc
-// inlines device code by its own rules
-#if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
+// inlines device code by its own rules. RBDKIT_NO_FLATTEN (the sanitizer build) compiles everything
+// as written, faster
+#if !defined(__CUDACC__) && !defined(RBDKIT_NO_FLATTEN) && (defined(__GNUC__) || defined(__clang__))
 #define RBD_FLATTEN __attribute__((flatten))
 #else
 #define RBD_FLATTEN

@@ -46,8 +46,8 @@
 #endif
 
 // a pack's kernel inlines everything it calls (the engine's speed);
-// RBDKIT_ENGINE_NO_FLATTEN (the sanitizer build) skips that to compile faster
-#ifdef RBDKIT_ENGINE_NO_FLATTEN
+// RBDKIT_NO_FLATTEN (the sanitizer build) skips that to compile faster, as RBD_FLATTEN does
+#ifdef RBDKIT_NO_FLATTEN
 #define RBD_ENGINE_KERNEL
 #else
 #define RBD_ENGINE_KERNEL __attribute__((flatten))
