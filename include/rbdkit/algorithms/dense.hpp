@@ -104,12 +104,12 @@ template <typename S> RBD_HD void neg_matmul_plain(const S* A, const S* B, int n
 
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
 namespace detail {
-// rows [r, r + R) x columns [c, c + NV·L) of out = -A B, NV vectors of L lanes per row
-template <typename S, int R, int NV>
+// rows [r, r + R) x columns [c, c + NV·L) of out = -A B, NV vectors of L lanes (Bytes bytes) per row
+template <typename S, int R, int NV, int Bytes>
 inline void neg_matmul_block(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, int n, int cols, int r, int c,
                              S* RBD_RESTRICT out) {
-  typedef S V __attribute__((vector_size(16)));
-  constexpr int L = 16 / sizeof(S);
+  typedef S V __attribute__((vector_size(Bytes)));
+  constexpr int L = Bytes / sizeof(S);
   V acc[R][NV];
   for (int i = 0; i < R; ++i)
     for (int j = 0; j < NV; ++j) acc[i][j] = V{} ;
@@ -131,10 +131,12 @@ inline void neg_matmul_block(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, i
 template <typename S, int R>
 inline void neg_matmul_rows(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, int n, int cols, int r,
                             S* RBD_RESTRICT out) {
-  constexpr int L = 16 / sizeof(S);
+  constexpr int L = 16 / sizeof(S), W = RBD_HOST_VECTOR_BYTES / sizeof(S);
   int c = 0;
-  for (; c + 4 * L <= cols; c += 4 * L) neg_matmul_block<S, R, 4>(A, B, n, cols, r, c, out);
-  for (; c + L <= cols; c += L) neg_matmul_block<S, R, 1>(A, B, n, cols, r, c, out);
+  for (; c + 4 * W <= cols; c += 4 * W) neg_matmul_block<S, R, 4, RBD_HOST_VECTOR_BYTES>(A, B, n, cols, r, c, out);
+  for (; c + W <= cols; c += W) neg_matmul_block<S, R, 1, RBD_HOST_VECTOR_BYTES>(A, B, n, cols, r, c, out);
+  if (W > L)
+    for (; c + L <= cols; c += L) neg_matmul_block<S, R, 1, 16>(A, B, n, cols, r, c, out);
   for (; c < cols; ++c)
     for (int i = r; i < r + R; ++i) {
       S acc = S(0);
@@ -178,11 +180,11 @@ RBD_HD void scaled_row_sum_plain(const S* B, const S* a, int lda, int n, const i
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
 namespace detail {
 // out[r, r + NV·L) of scaled_row_sum, NV vectors of L lanes
-template <typename S, int NV>
+template <typename S, int NV, int Bytes = 16>
 inline void scaled_row_sum_block(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int lda, int n,
                                  const int* RBD_RESTRICT rows, int count, int r, S* RBD_RESTRICT out) {
-  typedef S V __attribute__((vector_size(16)));
-  constexpr int L = 16 / sizeof(S);
+  typedef S V __attribute__((vector_size(Bytes)));
+  constexpr int L = Bytes / sizeof(S);
   V acc[NV];
   for (int v = 0; v < NV; ++v) acc[v] = V{};
   for (int j = 0; j < count; ++j) {
@@ -204,8 +206,14 @@ RBD_HD void scaled_row_sum(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int
                            const int* RBD_RESTRICT rows, int count, S* RBD_RESTRICT out) {
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
-    constexpr int L = 16 / sizeof(S);
+    constexpr int L = 16 / sizeof(S), W = RBD_HOST_VECTOR_BYTES / sizeof(S);
     int r = 0;
+    if (W > L) {  // wider vectors first (an instance compiled for AVX or AVX-512): 4, 2, 1 of them
+      constexpr int VB = RBD_HOST_VECTOR_BYTES;
+      for (; r + 4 * W <= n; r += 4 * W) detail::scaled_row_sum_block<S, 4, VB>(B, a, lda, n, rows, count, r, out);
+      if (r + 2 * W <= n) detail::scaled_row_sum_block<S, 2, VB>(B, a, lda, n, rows, count, r, out), r += 2 * W;
+      if (r + W <= n) detail::scaled_row_sum_block<S, 1, VB>(B, a, lda, n, rows, count, r, out), r += W;
+    }
     for (; r + 8 * L <= n; r += 8 * L) detail::scaled_row_sum_block<S, 8>(B, a, lda, n, rows, count, r, out);
     if (r + 4 * L <= n) detail::scaled_row_sum_block<S, 4>(B, a, lda, n, rows, count, r, out), r += 4 * L;
     if (r + 2 * L <= n) detail::scaled_row_sum_block<S, 2>(B, a, lda, n, rows, count, r, out), r += 2 * L;

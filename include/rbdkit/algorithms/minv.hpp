@@ -67,9 +67,9 @@ RBD_HD bool minv_joint_inertia(const BodyDesc<S>& b, const Transform<S>& X_world
 // ---- the column work of a one-DoF body, over a run of columns [c0, c1) at once. The passes keep F
 // (backward) and each body's P (forward) as 6 x nv, row r of every column contiguous, so a body's
 // work over its columns is six streams read and written side by side, one row of M⁻¹ with them.
-// minv_columns calls body(c, lane) for each column c, or for 16 bytes of columns at a time (lane: a
-// GCC/clang vector) in host code that nvcc does not see, in double and float; lanes_load/lanes_store
-// move one lane's worth. Each column's operations are the same, in the same order, on either path.
+// minv_columns calls body(c, lane) for each column c, or for a vector of columns at a time (lane: a
+// GCC/clang vector of RBD_HOST_VECTOR_BYTES, then of 16 bytes) in host code that nvcc does not see, in
+// double and float; lanes_load/lanes_store move one lane's worth. Each column's operations are the same, in the same order, on either path.
 template <typename T, typename S> RBD_HD T lanes_load(const S* p) {
   if constexpr (std::is_same<T, S>::value) {
     return *p;
@@ -87,6 +87,14 @@ template <typename S, typename Body> RBD_HD_INLINE void minv_columns(int c0, int
   int c = c0;
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
+#if RBD_HOST_VECTOR_BYTES >= 64
+    typedef S V64 __attribute__((vector_size(64)));
+    for (; c + int(64 / sizeof(S)) <= c1; c += 64 / sizeof(S)) body(c, V64{});
+#endif
+#if RBD_HOST_VECTOR_BYTES >= 32
+    typedef S V32 __attribute__((vector_size(32)));
+    for (; c + int(32 / sizeof(S)) <= c1; c += 32 / sizeof(S)) body(c, V32{});
+#endif
     typedef S V __attribute__((vector_size(16)));
     constexpr int L = 16 / sizeof(S);
     for (; c + L <= c1; c += L) body(c, V{});
@@ -212,13 +220,18 @@ RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* 
     }
     if (!minv_joint_inertia(b, w.X_world[i], Sw, w.IA[i], U, Dinv, leave_world)) return false;
     if (b.parent >= 0) add_articulated_residual(ni, w.IA[i], U, Dinv, w.IA[b.parent]);
-    // own block: D⁻¹
+    // a one-DoF body (the common case: a scalar D⁻¹): its own entry D⁻¹, its descendants' columns
+    // -D⁻¹ Sᵀ F, then F_λ = F_i + U Minv_i· over the subtree columns (in place)
+    if (ni == 1) {
+      Minv[vi * nv + vi] = Dinv[0];
+      minv_row_from_columns(Sw[0], -Dinv[0], F, nv, vi + 1, c_end, Minv + vi * nv);
+      if (b.parent >= 0) minv_columns_add(U[0], Minv + vi * nv, nv, vi, c_end, F);
+      continue;
+    }
+    // otherwise the same with D⁻¹ a matrix: own block D⁻¹, descendants' columns -D⁻¹ Sᵀ F
     for (int k = 0; k < ni; ++k)
       for (int l = 0; l < ni; ++l) Minv[(vi + k) * nv + vi + l] = Dinv[k * ni + l];
-    // descendants' columns: -D⁻¹ Sᵀ F (one DoF, the common case: a scalar D⁻¹)
-    if (ni == 1) {
-      minv_row_from_columns(Sw[0], -Dinv[0], F, nv, vi + 1, c_end, Minv + vi * nv);
-    } else if (b.type == kFree && b.parent < 0) {  // -D⁻¹ X_0b⁻¹ F as one 6 x 6 on the rows of F
+    if (b.type == kFree && b.parent < 0) {  // -D⁻¹ X_0b⁻¹ F as one 6 x 6 on the rows of F
       Mat6<S> G;
       if (own) {  // S = 1: -D⁻¹
         for (int k = 0; k < 36; ++k) G.m[k] = -Dinv[k];
@@ -231,20 +244,16 @@ RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* 
         }
       }
       mat6_times_rows(G, F, nv, vi + 6, c_end, Minv + vi * nv, nv);
-    } else
-    for (int c = vi + ni; c < c_end; ++c) {
-      S sf[6];
-      joint_project_in(b, w.X_world[i], Sw, Force<S>{load3(F + c, nv), load3(F + 3 * nv + c, nv)}, sf);
-      if (ni == 6) neg_dinv_times<6>(Dinv, sf, Minv + vi * nv + c, nv);  // a free joint: fixed-size loops
-      else neg_dinv_times(ni, Dinv, sf, Minv + vi * nv + c, nv);
+    } else {
+      for (int c = vi + ni; c < c_end; ++c) {
+        S sf[6];
+        joint_project_in(b, w.X_world[i], Sw, Force<S>{load3(F + c, nv), load3(F + 3 * nv + c, nv)}, sf);
+        if (ni == 6) neg_dinv_times<6>(Dinv, sf, Minv + vi * nv + c, nv);  // a free joint: fixed-size loops
+        else neg_dinv_times(ni, Dinv, sf, Minv + vi * nv + c, nv);
+      }
     }
-    // F_λ = F_i + U Minv_i· over the subtree columns (in place)
     if (b.parent < 0) continue;
-    if (ni == 1) {
-      minv_columns_add(U[0], Minv + vi * nv, nv, vi, c_end, F);
-      continue;
-    }
-    for (int c = vi; c < c_end; ++c) {
+    for (int c = vi; c < c_end; ++c) {  // F_λ = F_i + U Minv_i·
       Force<S> fc{load3(F + c, nv), load3(F + 3 * nv + c, nv)};
       for (int k = 0; k < ni; ++k) fc += Minv[(vi + k) * nv + c] * U[k];
       store3(fc.lin, F + c, nv), store3(fc.ang, F + 3 * nv + c, nv);

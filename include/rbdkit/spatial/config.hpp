@@ -31,6 +31,16 @@
 #else
 #define RBD_FLATTEN
 #endif
+// the vectors the host column loops (minv.hpp, dense.hpp) take first, in bytes: 16 (SSE2, x86-64's
+// baseline, what the library is built for), 32 under AVX (a per-robot instance compiled with
+// -march=native); then 16 bytes, then single entries, every column with the same operations in the
+// same order. Not 64 under AVX-512: the columns are a few dozen at most, and on the machine measured
+// (AMD Zen 4, whose 512-bit operations are two 256-bit halves) 64 was no faster, slower on the small robots
+#if defined(__AVX__)
+#define RBD_HOST_VECTOR_BYTES 32
+#else
+#define RBD_HOST_VECTOR_BYTES 16
+#endif
 // a body or coordinate loop that nvcc unrolls whole where its trip count is a compile-time constant
 // (a per-robot instance's model: a robot's sizes and bodies as constants, cuda/instance.cuh), which
 // turns the bodies' joint types, parents and constants into immediates and keeps a chain's values in
