@@ -148,11 +148,7 @@ RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace
              for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
            });
   if (!*ok) return false;  // (read after the barrier: the same on every thread)
-  t.each(nv, [&](long row) {
-    S acc = S(0);
-    for (int c = 0; c < nv; ++c) acc += Minv[row * nv + c] * r[c];
-    qdd[row] = acc;
-  });
+  matvec(t, Minv, r, qdd, nv, nv);
   rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
   const S* D[2] = {dq, dv};
   S* out[2] = {dqdd_dq, dqdd_dqd};

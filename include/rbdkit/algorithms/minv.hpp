@@ -451,11 +451,7 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
     return true;
   }
   if (!minv(m, w, q, true, Mi, leave_world)) return false;
-  for (int row = 0; row < nv; ++row) {
-    S acc = S(0);
-    for (int c = 0; c < nv; ++c) acc += Mi[row * nv + c] * r[c];
-    qdd[row] = acc;
-  }
+  matvec(InlineTeam{}, Mi, r, qdd, nv, nv);
   return true;
 }
 

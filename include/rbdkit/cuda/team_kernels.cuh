@@ -188,11 +188,7 @@ template <> struct TeamOp<ops::ForwardDynamics> {
                for (int k = 0; k < nv; ++k) r[k] = a.in[2][k] - r[k];
              });
     if (!*ok) return false;
-    t.each(nv, [&](long row) {
-      T acc = T(0);
-      for (int c = 0; c < nv; ++c) acc += Mi[row * nv + c] * r[c];
-      a.out[0][row] = acc;
-    });
+    matvec(t, Mi, r, a.out[0], nv, nv);
     return true;
   }
 };

@@ -52,6 +52,17 @@ template <typename S> RBD_HD void matmul(const S* A, const S* B, S* C, int r, in
   }
 }
 
+// y (r) = A (r x n) x, row-major, y aliasing neither: a row per index on a cooperative team, in order
+// on an InlineTeam, each entry summed over n from 0 up either way (M⁻¹ (tau - c): forward dynamics
+// through M⁻¹, minv.hpp, and its team forms)
+template <typename Team, typename S> RBD_HD void matvec(const Team& t, const S* A, const S* x, S* y, int r, int n) {
+  t.each(r, [&](long i) {
+    S acc = S(0);
+    for (int k = 0; k < n; ++k) acc += A[i * n + k] * x[k];
+    y[i] = acc;
+  });
+}
+
 // one R x R tile of C = sign · A B (A: r x n with row stride lda, B: n x c with stride ldb, C: stride
 // ldc), rows i0.. and columns j0.., each entry summed over k from 0 up (the order of the plain
 // product). A tile reads R entries of A and R of B per k for R² multiply-adds, where an entry per
