@@ -56,7 +56,7 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 # the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
 TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
-            "integrator_gradient")
+            "integrator_gradient", "plant_step_hessian")
 # the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops)
 INSTANCE_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
                 "forward_dynamics_gradient", "integrator_gradient")

@@ -159,7 +159,8 @@ TEST(Cuda, TeamFailuresAreNamed) {
       <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>)");
   rbd::Handle serial(m);
   const auto hp = interpret_handle(m, "float64");
-  for (const char* name : {"minv", "forward_dynamics", "forward_dynamics_gradient", "integrator_gradient"}) {
+  for (const char* name :
+       {"minv", "forward_dynamics", "forward_dynamics_gradient", "integrator_gradient", "plant_step_hessian"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const Inputs in = make_inputs(m, *ops::op_table()[id].spec, 3, 4, false);
@@ -224,10 +225,10 @@ TEST(Cuda, WorkMemoriesAgree) {
 }
 
 // the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
-// step's gradient with and without ∂x⁺/∂f_ext; a block of threads per sample) against the serial loop, as
-// the sample-per-thread kernels are: every test model, both dtypes, the work in shared and in global
-// memory, every output or some, f_ext, every integrator scheme in both conventions (MuJoCo's, asked
-// for, on one thread of the team);
+// step's gradient with and without ∂x⁺/∂f_ext, the step's Hessian; a block of threads per sample) against
+// the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in shared
+// and in global memory, every output or some, f_ext, every integrator scheme in both conventions
+// (MuJoCo's, asked for, on one thread of the team), the Hessian in both of its forms;
 // mimic models keep the sample kernel; device arrays' values checked by the team
 TEST(Cuda, TeamKernelsEqualCpu) {
   for (const ModelCase& mc : rbd_test::all_cases()) {
@@ -236,11 +237,13 @@ TEST(Cuda, TeamKernelsEqualCpu) {
     rbd::Handle serial(m);
     const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
     for (const char* name : {"inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
-                             "forward_dynamics_gradient", "integrator_gradient", "integrator_f_ext_gradient"}) {
+                             "forward_dynamics_gradient", "integrator_gradient", "integrator_f_ext_gradient",
+                             "plant_step_hessian"}) {
       SCOPED_TRACE(name);
       const int id = ops::find_op(name);
       const ops::OpSpec& op = *ops::op_table()[id].spec;
-      const bool step = std::string(op.family) == "integrators", minv = std::string(name) == "minv";
+      const bool hessian = std::string(name) == "plant_step_hessian";
+      const bool step = std::string(op.family) == "integrators" || hessian, minv = std::string(name) == "minv";
       // auto: the team on a small batch (at most 8 per SM, 32 for a step: 32 or 128 samples on the
       // interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps the sample kernel
       // whatever is asked
@@ -259,7 +262,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       p64->cuda()->set_kernel("sample");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
       p64->cuda()->set_kernel("auto");
-      Inputs in = make_inputs(m, op, 5, 11, true);
+      Inputs in = make_inputs(m, op, hessian ? 3 : 5, 11, true);
       // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the
       // halves alone; ∇FD: every output, the two matrices alone; the steps: every output, the last alone;
       // M⁻¹ dense and upper; each step with every scheme (the 6 integrator types) and convention (0:
@@ -272,7 +275,11 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       for (unsigned mask : masks) {
         SCOPED_TRACE(mask);
         SCOPED_TRACE(variant);
-        if (step) in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
+        if (hessian) {  // the Hessian: integrator_type, output_convention, form (the reference one for H alone)
+          in.call.choice[3] = variant % 6, in.call.choice[5] = variant / 6, in.call.choice[6] = mask == 1u << 2;
+        } else if (step) {
+          in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
+        }
         if (minv) in.call.choice[1] = 1 - variant;  // output_dense: True, then False
         // MuJoCo's convention: the team asked for, which runs the step on one of its threads
         const char* kernel = step && variant >= 6 ? "team" : "auto";
@@ -294,9 +301,9 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       if (on_device()) continue;
       // a device array's bad value: the team's check names it, as the host's does
       Inputs bad = in;
-      bad.arrays[minv ? 0 : 1][3 * (minv ? m.nq : m.nv)] = NAN;  // (M⁻¹ takes q alone)
+      bad.arrays[minv ? 0 : 1][(hessian ? 2 : 3) * (minv ? m.nq : m.nv)] = NAN;  // (M⁻¹ takes q alone)
       const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
-      EXPECT_NE(msg.find(minv ? "q[3]" : "qd[3]"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(minv ? "q[3]" : hessian ? "u[2]" : "qd[3]"), std::string::npos) << msg;
     }
   }
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);

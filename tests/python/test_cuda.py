@@ -193,7 +193,8 @@ def test_device_arrays_are_checked(interpret):
 @pytest.mark.parametrize("robot", ["iiwa", "hyq_floating"])
 def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
     # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ID, M⁻¹, FD, ∇ID, ∇FD,
-    # the steps' gradients) or the sample-per-thread ones; each equals the CPU handle. A bad value is named
+    # the steps' gradients, the step's Hessian) or the sample-per-thread ones; each equals the CPU handle.
+    # A bad value is named
     name, _, floating = robot.partition("_")
     m = rbdkit.robots.load(name, floating_base=bool(floating))
     cpu = rbdkit.Handle(m)
@@ -206,7 +207,9 @@ def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
                          (h.inverse_dynamics(q, qd, tau), cpu.inverse_dynamics(q, qd, tau)),
                          (h.forward_dynamics_gradient(q, qd, tau), cpu.forward_dynamics_gradient(q, qd, tau)),
                          (h.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"),
-                          cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"))):
+                          cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4")),
+                         (h.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"),
+                          cpu.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"))):
             for g, r in zip(got, ref):
                 np.testing.assert_allclose(g, r, rtol=1e-10, atol=1e-10, err_msg=kernel)
     monkeypatch.setenv("RBDKIT_CUDA_KERNEL", "warp")

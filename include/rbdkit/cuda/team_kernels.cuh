@@ -33,6 +33,7 @@
 #include "rbdkit/cuda/kernels.cuh"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/model/team.hpp"
+#include "rbdkit/plant/integrator_hessian.hpp"
 #include "rbdkit/plant/integrators.hpp"
 
 namespace rbd {
@@ -264,6 +265,37 @@ template <typename Op> struct TeamStep {
 };
 template <> struct TeamOp<ops::IntegratorGradient> : TeamStep<ops::IntegratorGradient> {};
 template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::IntegratorFExtGradient> {};
+
+// the step's Hessian (integrator_hessian.hpp), every scheme: integrator_hessian_with on the team (each
+// stage's ∇FD by aba_derivatives_team, FDSVA-SO and the retraction maps on one thread, the jets'
+// products and sums an entry or a row per index); the reference form's correction on one thread.
+// MuJoCo's convention has no team form: where the team is asked for (auto does not), the registry's
+// kernel runs on one thread. extra: aba_derivatives_team's memory, then the jets' products and a flag
+// (integrator_hessian_team_values)
+template <> struct TeamOp<ops::PlantStepHessian> {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 32;  // (as the step's gradient: the stages' work is more to split)
+  static constexpr int wide_nv = 16;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return aba_derivatives_team_bytes<T>(nb, nv) + workspace_array_bytes<T>(integrator_hessian_team_values(nv)) + 16;
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, m.nv) - 16);
+    if (a.choice[5] != kPinocchioConvention) {
+      t.one([&] { *ok = ops::PlantStepHessian::run(m, w, a); });
+      return *ok;
+    }
+    T* team_tmp = reinterpret_cast<T*>(t.extra + aba_derivatives_team_bytes<T>(m.nb, m.nv));
+    T* x = a.out[0] ? a.out[0] : a.scratch + integrator_hessian_scratch_values(m.nq, m.nv);  // (as Op::run)
+    T* AB = a.out[1] ? a.out[1] : x + m.nq + m.nv;
+    if (!integrator_hessian_with<PinocchioStep>(m, w, a.choice[3], a.in[0], a.in[0] + m.nq, a.in[1], a.real[2],
+                                                a.real[4], x, x + m.nq, AB, a.out[2], a.scratch, t, team_tmp))
+      return false;
+    if (a.choice[6] == kReferenceForm) t.one([&] { step_hessian_reference_form(m, a.choice[5], AB, a.out[2]); });
+    return true;
+  }
+};
 
 // the team's extra bytes of Op (0 too where Op has no team kernel)
 template <typename Op, typename T> RBD_HD unsigned long team_extra_bytes(int nb, int nv) {

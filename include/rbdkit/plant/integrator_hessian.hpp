@@ -108,43 +108,55 @@ RBD_HD void joint_retraction_hessian(int type, const S* q0, const S* w, const S*
 // scratch values of retraction_jet
 RBD_HD long retraction_jet_scratch_values(int nv) { return 2L * nv * nv + 6 * 12 * 12 + 2L * 12 * 3 * nv; }
 
+// a cooperative team's memory for the step Hessian beside its scratch, in values: the products T[i] Y
+// of every row i at once (compose_acceleration_jet's nv x 2nv x N, a curved part's 6 x 12 x N:
+// jet_quadratic_tmp_values), then one flag (FDSVA-SO's pass)
+RBD_HD long integrator_hessian_team_values(int nv) {
+  const long N = 3L * nv, compose = 2L * nv * nv * N, retraction = 72L * N;
+  return (compose > retraction ? compose : retraction) + 1;
+}
+
 // The jet of a stage configuration q_s = (q0 ⊕ δq) ⊕ w(z) in Conv's ⊕, given
 // the jet of the step w: value w (nv), Dw (nv x N) and Hw = hw_scale · Hw_src
 // (nv x N x N; null: zero). Writes q̄ = q0 ⊕ w (nq) and the jet of
-// ξ = q_s ⊖ q̄: Dxi (nv x N), Hxi (nv x N x N).
-template <template <typename> class Conv, typename S>
+// ξ = q_s ⊖ q̄: Dxi (nv x N), Hxi (nv x N x N). On team t (model/team.hpp):
+// the maps and each curved part's second derivatives on one thread, the
+// products side by side; team_tmp: a cooperative team's products
+// (integrator_hessian_team_values; unused by one thread)
+template <template <typename> class Conv, typename S, typename Team = InlineTeam>
 RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const S* Dw, const S* Hw_src,
-                           S hw_scale, S* qbar, S* Dxi, S* Hxi, S* scratch) {
+                           S hw_scale, S* qbar, S* Dxi, S* Hxi, S* scratch, const Team& t = Team{},
+                           S* team_tmp = nullptr) {
   const int nv = m.nv, N = 3 * nv;
   const long nn = static_cast<long>(nv) * nv, NN = static_cast<long>(N) * N;
   S* Gq = scratch;   // ∂(q0 ⊕ w)/∂q0 (nv x nv)
   S* Gw = Gq + nn;   // ∂(q0 ⊕ w)/∂w (nv x nv)
   S* G2 = Gw + nn;   // one joint part's second derivatives (d x 2d x 2d)
   S* J = G2 + 6 * 12 * 12;  // one joint part's [δq; w] rows of the jet (2d x N)
-  S* tmp = J + 12L * N;     // (2d x N)
-  Conv<S>::retract(m, q0, w, qbar);
+  S* tmp = Team::cooperative ? team_tmp : J + 12L * N;  // (2d x N; a team's: d x 2d x N)
+  t.one([&] {
+    Conv<S>::retract(m, q0, w, qbar);
+    Conv<S>::dretract(m, q0, w, 0, Gq);
+    Conv<S>::dretract(m, q0, w, 1, Gw);
+  });
   // first order: Dxi = Gq [I 0 0] + Gw Dw
-  Conv<S>::dretract(m, q0, w, 0, Gq);
-  Conv<S>::dretract(m, q0, w, 1, Gw);
-  matmul(Gw, Dw, Dxi, nv, nv, N);
-  for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nv; ++c) Dxi[r * N + c] += Gq[r * nv + c];
+  matmul(t, Gw, Dw, Dxi, nv, nv, N);
+  t.each2(nv, nv, [&](long r, long c) { Dxi[r * N + c] += Gq[r * nv + c]; });
   // second order: Gw Hw, then the curvature of the retraction per curved part
-  for (long k = 0; k < nv * NN; ++k) Hxi[k] = S(0);
-  if (Hw_src) jet_add_linear_upper(nv, nv, N, Gw, Hw_src, hw_scale, Hxi);
+  t.each(nv * NN, [&](long k) { Hxi[k] = S(0); });
+  if (Hw_src) jet_add_linear_upper(t, nv, nv, N, Gw, Hw_src, hw_scale, Hxi);
   for (int i = 0; i < m.nb; ++i) {
     int type = 0, qo = 0, o = 0;
     if (!curved_part(Conv<S>{}, m.body[i], type, qo, o)) continue;
     const int d = joint_nv(type);
-    joint_retraction_hessian<Conv>(type, q0 + qo, w + o, qbar + qo, G2);
-    for (int r = 0; r < d; ++r)
-      for (int c = 0; c < N; ++c) {
-        J[r * N + c] = c == o + r ? S(1) : S(0);
-        J[(d + r) * N + c] = Dw[(o + r) * N + c];
-      }
-    jet_add_quadratic_upper(d, 2 * d, N, G2, J, S(1), Hxi + o * NN, tmp);
+    t.one([&] { joint_retraction_hessian<Conv>(type, q0 + qo, w + o, qbar + qo, G2); });
+    t.each2(d, N, [&](long r, long c) {
+      J[r * N + c] = c == o + r ? S(1) : S(0);
+      J[(d + r) * N + c] = Dw[(o + r) * N + c];
+    });
+    jet_add_quadratic_upper(t, d, 2 * d, N, G2, J, S(1), Hxi + o * NN, tmp);
   }
-  jet_mirror(nv, N, Hxi);
+  jet_mirror(t, nv, N, Hxi);
 }
 
 // ---------------------------------------------------------------- acceleration tensors
@@ -181,44 +193,83 @@ RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S
   return true;
 }
 
+// acceleration_tensors on a cooperative team (a model without mimic joints), in Pinocchio's
+// coordinates: the first derivatives by aba_derivatives_team (in t.extra), FDSVA-SO on one thread
+// (its pass reports through flag, one value: 0 where M is not PD), T's rows side by side. On one
+// thread: acceleration_tensors
+template <typename S, typename Team>
+RBD_HD bool acceleration_tensors(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                 const S* u, S gravity, S* a, S* Fq, S* Fv, S* Fu, S* T, S* Aqu, S* scratch,
+                                 S* flag) {
+  if constexpr (!Team::cooperative) {
+    (void)t, (void)flag;
+    return acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, scratch);
+  } else {
+    const int nv = m.nv, p = 2 * nv;
+    const long nn = static_cast<long>(nv) * nv;
+    S* Aqq = scratch;
+    S* Avv = Aqq + nn * nv;
+    S* Aqv = Avv + nn * nv;
+    if (!PinocchioStep<S>::acceleration_derivatives(t, m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a,
+                                                    Fq, Fv, Fu, static_cast<S*>(nullptr)))
+      return false;
+    t.one([&] { flag[0] = fdsva_so(m, w, q, v, u, gravity, Aqq, Avv, Aqv, Aqu) ? S(1) : S(0); });
+    if (flag[0] == S(0)) return false;  // (read after the barrier: the same on every thread)
+    t.each(nv, [&](long i) {
+      const long o = i * nn;
+      S* Ti = T + i * p * p;
+      for (int r = 0; r < nv; ++r)
+        for (int c = 0; c < nv; ++c) {
+          Ti[r * p + c] = S(0.5) * (Aqq[o + r * nv + c] + Aqq[o + c * nv + r]);
+          Ti[r * p + nv + c] = Aqv[o + r * nv + c];
+          Ti[(nv + c) * p + r] = Aqv[o + r * nv + c];
+          Ti[(nv + r) * p + nv + c] = Avv[o + r * nv + c];
+        }
+    });
+    return true;
+  }
+}
+
 // The jet of a from its tensors (acceleration_tensors) and the jets of ξ
 // (Dq, Hq) and v (Dv, Hv), u's jet being [0 0 I]; Hq, Hv may be null (zero).
-// Writes Da (nv x N), Ha (nv x N x N); scratch 12nv² values.
-template <typename S>
+// Writes Da (nv x N), Ha (nv x N x N); scratch 12nv² values; on team t, as
+// retraction_jet (team_tmp: a cooperative team's products)
+template <typename S, typename Team = InlineTeam>
 RBD_HD void compose_acceleration_jet(int nv, const S* Fq, const S* Fv, const S* Fu, const S* T, const S* Aqu,
-                                     const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* Da, S* Ha, S* scratch) {
+                                     const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* Da, S* Ha, S* scratch,
+                                     const Team& t = Team{}, S* team_tmp = nullptr) {
   const int N = 3 * nv, p = 2 * nv;
-  const long nn = static_cast<long>(nv) * nv, NN = static_cast<long>(N) * N;
+  const long nn = static_cast<long>(nv) * nv, NN = static_cast<long>(N) * N, Dm = nv * static_cast<long>(N);
   S* Y = scratch;       // [Dq; Dv] (2nv x N)
   S* tmp = Y + 6 * nn;  // (2nv x N)
   // Da = Fq Dq + Fv Dv + [0 0 Fu]
-  matmul(Fq, Dq, Da, nv, nv, N);
-  matmul(Fv, Dv, tmp, nv, nv, N);
-  for (long k = 0; k < nv * static_cast<long>(N); ++k) Da[k] += tmp[k];
-  for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nv; ++c) Da[r * N + 2 * nv + c] += Fu[r * nv + c];
+  matmul(t, Fq, Dq, Da, nv, nv, N);
+  matmul(t, Fv, Dv, tmp, nv, nv, N);
+  t.each(Dm, [&](long k) { Da[k] += tmp[k]; });
+  t.each2(nv, nv, [&](long r, long c) { Da[r * N + 2 * nv + c] += Fu[r * nv + c]; });
   // Ha = Yᵀ T Y + (the q-u terms) + Fq Hq + Fv Hv
-  for (long k = 0; k < nv * static_cast<long>(N); ++k) Y[k] = Dq[k], Y[nv * static_cast<long>(N) + k] = Dv[k];
-  for (long k = 0; k < nv * NN; ++k) Ha[k] = S(0);
-  jet_add_quadratic_upper(nv, p, N, T, Y, S(1), Ha, tmp);
-  // Du = [0 0 I]: Ha[i, j, 2nv + c] and Ha[i, 2nv + c, j] += Σ_b Aqu[i, b, c] Dq[b, j]
-  for (int i = 0; i < nv; ++i)
+  t.each(Dm, [&](long k) { Y[k] = Dq[k], Y[Dm + k] = Dv[k]; });
+  t.each(nv * NN, [&](long k) { Ha[k] = S(0); });
+  jet_add_quadratic_upper(t, nv, p, N, T, Y, S(1), Ha, Team::cooperative ? team_tmp : tmp);
+  // Du = [0 0 I]: Ha[i, j, 2nv + c] and Ha[i, 2nv + c, j] += Σ_b Aqu[i, b, c] Dq[b, j] (a row i per index)
+  t.each(nv, [&](long i) {
+    S* Hi = Ha + i * NN;
     for (int b = 0; b < nv; ++b) {
-      const S* t = Aqu + (static_cast<long>(i) * nv + b) * nv;
-      S* Hi = Ha + i * NN;
+      const S* a = Aqu + (i * nv + b) * nv;
       for (int j = 0; j < N; ++j) {
         const S d = Dq[b * N + j];
         if (so_skippable(d)) continue;
         for (int c = 0; c < nv; ++c) {
-          const S x = d * t[c];
+          const S x = d * a[c];
           Hi[static_cast<long>(j) * N + 2 * nv + c] += x;
           Hi[static_cast<long>(2 * nv + c) * N + j] += x;
         }
       }
     }
-  if (Hq) jet_add_linear_upper(nv, nv, N, Fq, Hq, S(1), Ha);
-  if (Hv) jet_add_linear_upper(nv, nv, N, Fv, Hv, S(1), Ha);
-  jet_mirror(nv, N, Ha);
+  });
+  if (Hq) jet_add_linear_upper(t, nv, nv, N, Fq, Hq, S(1), Ha);
+  if (Hv) jet_add_linear_upper(t, nv, nv, N, Fv, Hv, S(1), Ha);
+  jet_mirror(t, nv, N, Ha);
 }
 
 // ---------------------------------------------------------------- acceleration jet
@@ -235,10 +286,12 @@ RBD_HD long acceleration_jet_scratch_values(int nq, int nv) {
 // The jet of a_s = a(q̄ ⊕ ξ, v, u + δu) in the convention of the tag from the
 // jets of ξ (Dq, Hq) and of v (Dv, Hv); Hq, Hv may be null (zero). Writes
 // a (nv), Da (nv x N), Ha (nv x N x N). Uses w; false if M is not PD.
-template <typename S>
+// On team t, as acceleration_tensors and compose_acceleration_jet (team_tmp: a cooperative team's
+// memory, integrator_hessian_team_values; MuJoCo's coordinates on one thread only)
+template <typename S, typename Team = InlineTeam>
 RBD_HD bool acceleration_jet(PinocchioStep<S>, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
                              const S* u, S gravity, const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* a, S* Da,
-                             S* Ha, S* scratch) {
+                             S* Ha, S* scratch, const Team& t = Team{}, S* team_tmp = nullptr) {
   const int nv = m.nv;
   const long nn = static_cast<long>(nv) * nv;
   S* Fq = scratch;          // ∂a/∂ξ (nv x nv)
@@ -247,16 +300,18 @@ RBD_HD bool acceleration_jet(PinocchioStep<S>, const ModelView<S>& m, Workspace<
   S* T = Fu + nn;           // (nv x 2nv x 2nv)
   S* Aqu = T + 4 * nn * nv; // (nv x nv x nv)
   S* work = Aqu + nn * nv + m.nq + 2L * nv;
-  if (!acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work)) return false;
-  compose_acceleration_jet(nv, Fq, Fv, Fu, T, Aqu, Dq, Hq, Dv, Hv, Da, Ha, work);
+  S* flag = Team::cooperative ? team_tmp + integrator_hessian_team_values(nv) - 1 : static_cast<S*>(nullptr);
+  if (!acceleration_tensors(t, m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work, flag)) return false;
+  compose_acceleration_jet(nv, Fq, Fv, Fu, T, Aqu, Dq, Hq, Dv, Hv, Da, Ha, work, t, team_tmp);
   return true;
 }
 
 // MuJoCo coordinates: q (MuJoCo layout), v, u in MuJoCo's frames
-template <typename S>
+template <typename S, typename Team = InlineTeam>
 RBD_HD bool acceleration_jet(MujocoStep<S>, const ModelView<S>& m, Workspace<S>& w, const S* q_mj, const S* v_mj,
                              const S* u_mj, S gravity, const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* a, S* Da,
-                             S* Ha, S* scratch) {
+                             S* Ha, S* scratch, const Team& = Team{}, S* = nullptr) {
+  static_assert(!Team::cooperative, "MuJoCo's coordinates have no team form of the step Hessian");
   const int nv = m.nv;
   const long nn = static_cast<long>(nv) * nv;
   S* Fq = scratch;
@@ -288,10 +343,16 @@ RBD_HD long integrator_hessian_scratch_values(int nq, int nv) {
 
 // x⁺ (q_next (nq), v_next (nv)), AB (2nv x N) and H (2nv x N x N) as defined
 // at the top of this file, in the coordinates of the policy Conv
-// (PinocchioStep or MujocoStep). false if M is not PD at a stage.
-template <template <typename> class Conv, typename S>
+// (PinocchioStep or MujocoStep). false if M is not PD at a stage. On team t
+// (model/team.hpp; a cooperative one in Pinocchio's coordinates, on a model
+// without mimic joints): each stage's first derivatives by
+// aba_derivatives_team (in t.extra), FDSVA-SO and the retraction maps on one
+// thread, the jets' products and sums side by side; team_tmp:
+// integrator_hessian_team_values(nv) values (unused by one thread)
+template <template <typename> class Conv, typename S, typename Team = InlineTeam>
 RBD_HD bool integrator_hessian_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
-                                    const S* u, S dt, S gravity, S* q_next, S* v_next, S* AB, S* H, S* scratch) {
+                                    const S* u, S dt, S gravity, S* q_next, S* v_next, S* AB, S* H, S* scratch,
+                                    const Team& t = Team{}, S* team_tmp = nullptr) {
   const int nq = m.nq, nv = m.nv, N = 3 * nv;
   const long Dm = static_cast<long>(nv) * N, T = Dm * N;
   S* qs = scratch;        // stage configuration (nq)
@@ -315,72 +376,72 @@ RBD_HD bool integrator_hessian_with(const ModelView<S>& m, Workspace<S>& w, int 
   S* Hv_next = H + T;
 
   // stage 1 (every scheme): ξ = δq, v = v0 + δv, a(q, v, u)
-  jet_unit_block(nv, 0, Dxi);
-  jet_unit_block(nv, 1, Dv);
+  jet_unit_block(t, nv, 0, Dxi);
+  jet_unit_block(t, nv, 1, Dv);
   if (!acceleration_jet(Conv<S>{}, m, w, q, v, u, gravity, Dxi, static_cast<const S*>(nullptr), Dv,
-                        static_cast<const S*>(nullptr), as, Da, Ha, sub))
+                        static_cast<const S*>(nullptr), as, Da, Ha, sub, t, team_tmp))
     return false;
 
   if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
     // v⁺ = v + dt a
-    for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
-    for (long k = 0; k < Dm; ++k) Dvsum[k] = Dv[k] + dt * Da[k];  // ∂v⁺
-    for (long k = 0; k < T; ++k) Hv_next[k] = dt * Ha[k];
+    t.each(nv, [&](long k) { v_next[k] = v[k] + dt * as[k]; });
+    t.each(Dm, [&](long k) { Dvsum[k] = Dv[k] + dt * Da[k]; });  // ∂v⁺
+    t.each(T, [&](long k) { Hv_next[k] = dt * Ha[k]; });
     // q⁺ = q ⊕ w: euler w = dt v, semi-implicit w = dt v⁺, constant acceleration w = dt v + ½ dt² a
     S hs = S(0);
     if (type == kEuler) {
-      for (int k = 0; k < nv; ++k) step[k] = dt * v[k];
-      for (long k = 0; k < Dm; ++k) Dw[k] = dt * Dv[k];
+      t.each(nv, [&](long k) { step[k] = dt * v[k]; });
+      t.each(Dm, [&](long k) { Dw[k] = dt * Dv[k]; });
     } else if (type == kSemiImplicitEuler) {
-      for (int k = 0; k < nv; ++k) step[k] = dt * v_next[k];
-      for (long k = 0; k < Dm; ++k) Dw[k] = dt * Dvsum[k];
+      t.each(nv, [&](long k) { step[k] = dt * v_next[k]; });
+      t.each(Dm, [&](long k) { Dw[k] = dt * Dvsum[k]; });
       hs = dt * dt;
     } else {
-      for (int k = 0; k < nv; ++k) step[k] = dt * v[k] + S(0.5) * dt * dt * as[k];
-      for (long k = 0; k < Dm; ++k) Dw[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k];
+      t.each(nv, [&](long k) { step[k] = dt * v[k] + S(0.5) * dt * dt * as[k]; });
+      t.each(Dm, [&](long k) { Dw[k] = dt * Dv[k] + S(0.5) * dt * dt * Da[k]; });
       hs = S(0.5) * dt * dt;
     }
     retraction_jet<Conv>(m, q, step, Dw, type == kEuler ? static_cast<const S*>(nullptr) : Ha, hs, q_next, Dxi,
-                   Hq_next, sub);
-    for (long k = 0; k < Dm; ++k) AB[k] = Dxi[k], AB[Dm + k] = Dvsum[k];
+                         Hq_next, sub, t, team_tmp);
+    t.each(Dm, [&](long k) { AB[k] = Dxi[k], AB[Dm + k] = Dvsum[k]; });
     return true;
   }
 
   // full-state stages: q_s = q ⊕ c dt v_(s-1), v_s = v + c dt a_(s-1)
   const Tableau tb = tableau(type);
   S b0 = S(tb.b[0]);
-  for (int k = 0; k < nv; ++k) vsum[k] = b0 * v[k], asum[k] = b0 * as[k], vs[k] = v[k];
-  for (long k = 0; k < Dm; ++k) Dvsum[k] = b0 * Dv[k], Dasum[k] = b0 * Da[k];
-  for (long k = 0; k < T; ++k) Hasum[k] = b0 * Ha[k];  // Σ b_s Hv_s is kept in Hv_next
-  for (long k = 0; k < T; ++k) Hv_next[k] = S(0);
+  t.each(nv, [&](long k) { vsum[k] = b0 * v[k], asum[k] = b0 * as[k], vs[k] = v[k]; });
+  t.each(Dm, [&](long k) { Dvsum[k] = b0 * Dv[k], Dasum[k] = b0 * Da[k]; });
+  t.each(T, [&](long k) { Hasum[k] = b0 * Ha[k], Hv_next[k] = S(0); });  // Σ b_s Hv_s is kept in Hv_next
   bool hv_zero = true;  // Hv of the preceding stage is zero (stage 1)
   for (int s = 1; s < tb.stages; ++s) {
     const S c = S(tb.c[s]) * dt, b = S(tb.b[s]);
     // configuration from the preceding stage's velocity jet
-    for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
-    for (long k = 0; k < Dm; ++k) Dw[k] = c * Dv[k];
-    retraction_jet<Conv>(m, q, step, Dw, hv_zero ? static_cast<const S*>(nullptr) : Hv, c, qs, Dxi, Hxi, sub);
+    t.each(nv, [&](long k) { step[k] = c * vs[k]; });
+    t.each(Dm, [&](long k) { Dw[k] = c * Dv[k]; });
+    retraction_jet<Conv>(m, q, step, Dw, hv_zero ? static_cast<const S*>(nullptr) : Hv, c, qs, Dxi, Hxi, sub, t,
+                         team_tmp);
     // velocity from the preceding stage's acceleration jet
-    for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
-    jet_unit_block(nv, 1, Dv);
-    for (long k = 0; k < Dm; ++k) Dv[k] += c * Da[k];
-    for (long k = 0; k < T; ++k) Hv[k] = c * Ha[k];
+    t.each(nv, [&](long k) { vs[k] = v[k] + c * as[k]; });
+    jet_unit_block(t, nv, 1, Dv);
+    t.each(Dm, [&](long k) { Dv[k] += c * Da[k]; });
+    t.each(T, [&](long k) { Hv[k] = c * Ha[k]; });
     hv_zero = false;
-    if (!acceleration_jet(Conv<S>{}, m, w, qs, vs, u, gravity, Dxi, Hxi, Dv, Hv, as, Da, Ha, sub)) return false;
-    for (int k = 0; k < nv; ++k) vsum[k] += b * vs[k], asum[k] += b * as[k];
-    for (long k = 0; k < Dm; ++k) Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k];
-    for (long k = 0; k < T; ++k) Hv_next[k] += b * Hv[k], Hasum[k] += b * Ha[k];
+    if (!acceleration_jet(Conv<S>{}, m, w, qs, vs, u, gravity, Dxi, Hxi, Dv, Hv, as, Da, Ha, sub, t, team_tmp))
+      return false;
+    t.each(nv, [&](long k) { vsum[k] += b * vs[k], asum[k] += b * as[k]; });
+    t.each(Dm, [&](long k) { Dvsum[k] += b * Dv[k], Dasum[k] += b * Da[k]; });
+    t.each(T, [&](long k) { Hv_next[k] += b * Hv[k], Hasum[k] += b * Ha[k]; });
   }
   // q⁺ = q ⊕ dt Σ b v_s (its H from Σ b Hv_s, held in Hv_next), v⁺ = v + dt Σ b a_s
-  for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
-  for (long k = 0; k < Dm; ++k) Dw[k] = dt * Dvsum[k];
-  retraction_jet<Conv>(m, q, step, Dw, Hv_next, dt, q_next, Dxi, Hq_next, sub);
-  for (long k = 0; k < T; ++k) Hv_next[k] = dt * Hasum[k];
-  for (long k = 0; k < Dm; ++k) AB[k] = Dxi[k], AB[Dm + k] = dt * Dasum[k];
-  for (int r = 0; r < nv; ++r) AB[Dm + r * N + nv + r] += S(1);
+  t.each(nv, [&](long k) { step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k]; });
+  t.each(Dm, [&](long k) { Dw[k] = dt * Dvsum[k]; });
+  retraction_jet<Conv>(m, q, step, Dw, Hv_next, dt, q_next, Dxi, Hq_next, sub, t, team_tmp);
+  t.each(T, [&](long k) { Hv_next[k] = dt * Hasum[k]; });
+  t.each(Dm, [&](long k) { AB[k] = Dxi[k], AB[Dm + k] = dt * Dasum[k]; });
+  t.each(nv, [&](long r) { AB[Dm + r * N + nv + r] += S(1); });
   return true;
 }
-
 
 // the step Hessian in the given convention (OutputConvention; default Pinocchio's)
 template <typename S>
