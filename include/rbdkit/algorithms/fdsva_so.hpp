@@ -67,20 +67,19 @@ template <typename S> RBD_HD void so_apply_neg_minv(const ModelView<S>& m, Works
   }
 }
 
-// the four (nv x nv x nv) tensors above; qdd (nv) too when not null. Uses
-// w.so_dense; false if M is not positive definite.
+// the second-order part of fdsva_so from its first order at the same point: qdd = FD(q, qd, u),
+// Gq = ∂qdd/∂q and Gv = ∂qdd/∂qd (nv x nv), with w.dense as aba_derivatives leaves it (M⁻¹; a mimic
+// model: M's Cholesky factor). A team's step Hessian (plant/integrator_hessian.hpp), which has the
+// first order already, calls it directly. Uses w.so_dense past its first 2nv² values. Inlined: fdsva_so
+// is then the one function it was (left a call, floating HyQ's rk4 step Hessian ran 10 % slower)
 template <typename S>
-RBD_HD bool fdsva_so(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* u, S gravity,
-                     S* d2qdd_dq2, S* d2qdd_dqd2, S* d2qdd_dqdqd, S* d2qdd_dqdu, S* qdd_out = nullptr) {
+RBD_HD_INLINE void fdsva_so_second_order(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
+                                  S gravity, const S* Gq, const S* Gv, S* d2qdd_dq2, S* d2qdd_dqd2,
+                                  S* d2qdd_dqdqd, S* d2qdd_dqdu) {
   const int nv = m.nv;
   const long nn = static_cast<long>(nv) * nv;
-  S* Gq = w.so_dense;  // ∂qdd/∂q
-  S* Gv = Gq + nn;     // ∂qdd/∂qd
-  S* Mi = Gv + nn;     // M⁻¹
+  S* Mi = w.so_dense + 2 * nn;  // M⁻¹
   S* blk = Mi + nn;
-  S* qdd = blk + nn;
-  // first order at qdd = FD(q, qd, u); w.dense keeps M⁻¹ (mimic models: the Cholesky factor of M)
-  if (!aba_derivatives(m, w, q, qd, u, static_cast<const S*>(nullptr), gravity, qdd, Gq, Gv)) return false;
   if (m.has_mimic) {
     for (int c = 0; c < nv; ++c) {
       S* row = Mi + c * nv;
@@ -114,6 +113,21 @@ RBD_HD bool fdsva_so(const ModelView<S>& m, Workspace<S>& w, const S* q, const S
   so_apply_neg_minv(m, w, d2qdd_dqd2, blk);
   so_apply_neg_minv(m, w, d2qdd_dqdqd, blk);
   so_apply_neg_minv(m, w, d2qdd_dqdu, blk);
+}
+
+// the four (nv x nv x nv) tensors above; qdd (nv) too when not null. Uses
+// w.so_dense; false if M is not positive definite.
+template <typename S>
+RBD_HD bool fdsva_so(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* u, S gravity,
+                     S* d2qdd_dq2, S* d2qdd_dqd2, S* d2qdd_dqdqd, S* d2qdd_dqdu, S* qdd_out = nullptr) {
+  const int nv = m.nv;
+  const long nn = static_cast<long>(nv) * nv;
+  S* Gq = w.so_dense;       // ∂qdd/∂q
+  S* Gv = Gq + nn;          // ∂qdd/∂qd
+  S* qdd = Gv + 3 * nn;     // (after M⁻¹ and a block: fdsva_so_second_order's)
+  // first order at qdd = FD(q, qd, u); w.dense keeps M⁻¹ (mimic models: the Cholesky factor of M)
+  if (!aba_derivatives(m, w, q, qd, u, static_cast<const S*>(nullptr), gravity, qdd, Gq, Gv)) return false;
+  fdsva_so_second_order(m, w, q, qd, qdd, gravity, Gq, Gv, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, d2qdd_dqdu);
   if (qdd_out)
     for (int k = 0; k < nv; ++k) qdd_out[k] = qdd[k];
   return true;

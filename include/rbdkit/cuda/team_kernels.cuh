@@ -270,8 +270,8 @@ template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::Integrato
 // stage's ∇FD by aba_derivatives_team, FDSVA-SO and the retraction maps on one thread, the jets'
 // products and sums an entry or a row per index); the reference form's correction on one thread.
 // MuJoCo's convention has no team form: where the team is asked for (auto does not), the registry's
-// kernel runs on one thread. extra: aba_derivatives_team's memory, then the jets' products and a flag
-// (integrator_hessian_team_values)
+// kernel runs on one thread. extra: aba_derivatives_team's memory, the jets' products
+// (integrator_hessian_team_values), a flag
 template <> struct TeamOp<ops::PlantStepHessian> {
   static constexpr bool available = true;
   static constexpr int per_sm = 32;  // (as the step's gradient: the stages' work is more to split)

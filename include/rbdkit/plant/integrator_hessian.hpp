@@ -110,10 +110,10 @@ RBD_HD long retraction_jet_scratch_values(int nv) { return 2L * nv * nv + 6 * 12
 
 // a cooperative team's memory for the step Hessian beside its scratch, in values: the products T[i] Y
 // of every row i at once (compose_acceleration_jet's nv x 2nv x N, a curved part's 6 x 12 x N:
-// jet_quadratic_tmp_values), then one flag (FDSVA-SO's pass)
+// jet_quadratic_tmp_values)
 RBD_HD long integrator_hessian_team_values(int nv) {
   const long N = 3L * nv, compose = 2L * nv * nv * N, retraction = 72L * N;
-  return (compose > retraction ? compose : retraction) + 1;
+  return compose > retraction ? compose : retraction;
 }
 
 // The jet of a stage configuration q_s = (q0 ⊕ δq) ⊕ w(z) in Conv's ⊕, given
@@ -165,23 +165,28 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
 // Fq = ∂a/∂ξ, Fv = ∂a/∂v, Fu = ∂a/∂u = M⁻¹ (nv x nv each); T (nv x 2nv x 2nv)
 // per row i the symmetric Hessian in (ξ, v); Aqu = ∂²a/∂ξ∂u (nv x nv x nv,
 // [(i·nv + b)·nv + c]); ∂²a/∂v∂u = ∂²a/∂u² = 0. Uses w (aba_derivatives,
-// fdsva_so) and 3nv³ scratch values. false if M is not PD.
-template <typename S>
+// fdsva_so) and 3nv³ scratch values. false if M is not PD. On team t: the
+// first order by PinocchioStep's (aba_derivatives_team on a cooperative team,
+// in t.extra), FDSVA-SO's second order on that first order on one thread
+// (fdsva_so_second_order: not forming ∇FD again), T's rows side by side
+template <typename S, typename Team = InlineTeam>
 RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
-                                 S gravity, S* a, S* Fq, S* Fv, S* Fu, S* T, S* Aqu, S* scratch) {
+                                 S gravity, S* a, S* Fq, S* Fv, S* Fu, S* T, S* Aqu, S* scratch,
+                                 const Team& t = Team{}) {
   const int nv = m.nv, p = 2 * nv;
   const long nn = static_cast<long>(nv) * nv;
   S* Aqq = scratch;        // ∂²a/∂q∂q (nv x nv x nv, iterated)
   S* Avv = Aqq + nn * nv;  // ∂²a/∂v∂v
   S* Aqv = Avv + nn * nv;  // ∂²a/∂q∂v
-  // first order; aba_derivatives leaves M⁻¹ (mimic: its Cholesky factor) in w.dense
-  if (!aba_derivatives(m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a, Fq, Fv)) return false;
-  copy_minv(m, w, Fu);
+  // first order; it leaves M⁻¹ (mimic: its Cholesky factor) in w.dense
+  if (!PinocchioStep<S>::acceleration_derivatives(t, m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a, Fq,
+                                                  Fv, Fu, static_cast<S*>(nullptr)))
+    return false;
   // second order: T = [[sym Aqq, Aqv], [Aqvᵀ, Avv]]
-  if (!fdsva_so(m, w, q, v, u, gravity, Aqq, Avv, Aqv, Aqu)) return false;
-  for (int i = 0; i < nv; ++i) {
-    const long o = static_cast<long>(i) * nn;
-    S* Ti = T + static_cast<long>(i) * p * p;
+  t.one([&] { fdsva_so_second_order(m, w, q, v, a, gravity, Fq, Fv, Aqq, Avv, Aqv, Aqu); });
+  t.each(nv, [&](long i) {
+    const long o = i * nn;
+    S* Ti = T + i * p * p;
     for (int r = 0; r < nv; ++r)
       for (int c = 0; c < nv; ++c) {
         Ti[r * p + c] = S(0.5) * (Aqq[o + r * nv + c] + Aqq[o + c * nv + r]);
@@ -189,53 +194,17 @@ RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S
         Ti[(nv + c) * p + r] = Aqv[o + r * nv + c];
         Ti[(nv + r) * p + nv + c] = Avv[o + r * nv + c];
       }
-  }
+  });
   return true;
-}
-
-// acceleration_tensors on a cooperative team (a model without mimic joints), in Pinocchio's
-// coordinates: the first derivatives by aba_derivatives_team (in t.extra), FDSVA-SO on one thread
-// (its pass reports through flag, one value: 0 where M is not PD), T's rows side by side. On one
-// thread: acceleration_tensors
-template <typename S, typename Team>
-RBD_HD bool acceleration_tensors(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
-                                 const S* u, S gravity, S* a, S* Fq, S* Fv, S* Fu, S* T, S* Aqu, S* scratch,
-                                 S* flag) {
-  if constexpr (!Team::cooperative) {
-    (void)t, (void)flag;
-    return acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, scratch);
-  } else {
-    const int nv = m.nv, p = 2 * nv;
-    const long nn = static_cast<long>(nv) * nv;
-    S* Aqq = scratch;
-    S* Avv = Aqq + nn * nv;
-    S* Aqv = Avv + nn * nv;
-    if (!PinocchioStep<S>::acceleration_derivatives(t, m, w, q, v, u, static_cast<const S*>(nullptr), gravity, a,
-                                                    Fq, Fv, Fu, static_cast<S*>(nullptr)))
-      return false;
-    t.one([&] { flag[0] = fdsva_so(m, w, q, v, u, gravity, Aqq, Avv, Aqv, Aqu) ? S(1) : S(0); });
-    if (flag[0] == S(0)) return false;  // (read after the barrier: the same on every thread)
-    t.each(nv, [&](long i) {
-      const long o = i * nn;
-      S* Ti = T + i * p * p;
-      for (int r = 0; r < nv; ++r)
-        for (int c = 0; c < nv; ++c) {
-          Ti[r * p + c] = S(0.5) * (Aqq[o + r * nv + c] + Aqq[o + c * nv + r]);
-          Ti[r * p + nv + c] = Aqv[o + r * nv + c];
-          Ti[(nv + c) * p + r] = Aqv[o + r * nv + c];
-          Ti[(nv + r) * p + nv + c] = Avv[o + r * nv + c];
-        }
-    });
-    return true;
-  }
 }
 
 // The jet of a from its tensors (acceleration_tensors) and the jets of ξ
 // (Dq, Hq) and v (Dv, Hv), u's jet being [0 0 I]; Hq, Hv may be null (zero).
 // Writes Da (nv x N), Ha (nv x N x N); scratch 12nv² values; on team t, as
-// retraction_jet (team_tmp: a cooperative team's products)
+// retraction_jet (team_tmp: a cooperative team's products). Out of line on the
+// host (RBD_NOINLINE)
 template <typename S, typename Team = InlineTeam>
-RBD_HD void compose_acceleration_jet(int nv, const S* Fq, const S* Fv, const S* Fu, const S* T, const S* Aqu,
+RBD_NOINLINE RBD_HD void compose_acceleration_jet(int nv, const S* Fq, const S* Fv, const S* Fu, const S* T, const S* Aqu,
                                      const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* Da, S* Ha, S* scratch,
                                      const Team& t = Team{}, S* team_tmp = nullptr) {
   const int N = 3 * nv, p = 2 * nv;
@@ -300,8 +269,7 @@ RBD_HD bool acceleration_jet(PinocchioStep<S>, const ModelView<S>& m, Workspace<
   S* T = Fu + nn;           // (nv x 2nv x 2nv)
   S* Aqu = T + 4 * nn * nv; // (nv x nv x nv)
   S* work = Aqu + nn * nv + m.nq + 2L * nv;
-  S* flag = Team::cooperative ? team_tmp + integrator_hessian_team_values(nv) - 1 : static_cast<S*>(nullptr);
-  if (!acceleration_tensors(t, m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work, flag)) return false;
+  if (!acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work, t)) return false;
   compose_acceleration_jet(nv, Fq, Fv, Fu, T, Aqu, Dq, Hq, Dv, Hv, Da, Ha, work, t, team_tmp);
   return true;
 }

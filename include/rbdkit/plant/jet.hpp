@@ -21,6 +21,13 @@ namespace rbd {
 // Every H is symmetric in (j, k): the products below fill the upper triangle
 // (k >= j) only, and jet_mirror completes a tensor once it is summed.
 
+// y[k] += a x[k] for k0 <= k < n, x and y disjoint (said once, so that the loops below vectorise the
+// same wherever they are inlined)
+template <typename S>
+RBD_HD_INLINE void jet_axpy(long k0, long n, S a, const S* RBD_RESTRICT x, S* RBD_RESTRICT y) {
+  for (long k = k0; k < n; ++k) y[k] += a * x[k];
+}
+
 // the values of jet_add_quadratic_upper's tmp on team t: p x N on one thread, n x p x N on a
 // cooperative team (every T[i] Y at once)
 template <typename Team> RBD_HD long jet_quadratic_tmp_values(int n, int p, int N) {
@@ -46,9 +53,7 @@ RBD_HD void jet_add_quadratic_upper(const Team& t, int n, int p, int N, const S*
           const S x = Ti[a * p + b];
           if (so_skippable(x)) continue;
           any = true;
-          const S* yb = Y + static_cast<long>(b) * N;
-          S* ta = tmp + static_cast<long>(a) * N;
-          for (int k = 0; k < N; ++k) ta[k] += x * yb[k];
+          jet_axpy(0, N, x, Y + static_cast<long>(b) * N, tmp + static_cast<long>(a) * N);
         }
       if (!any) continue;
       // H[i] += s Yᵀ tmp, k >= j
@@ -58,9 +63,7 @@ RBD_HD void jet_add_quadratic_upper(const Team& t, int n, int p, int N, const S*
         for (int j = 0; j < N; ++j) {
           const S y = Y[static_cast<long>(a) * N + j];
           if (so_skippable(y)) continue;
-          const S sy = s * y;
-          S* h = Hi + static_cast<long>(j) * N;
-          for (int k = j; k < N; ++k) h[k] += sy * ta[k];
+          jet_axpy(j, N, s * y, ta, Hi + static_cast<long>(j) * N);
         }
       }
     }
@@ -73,8 +76,7 @@ RBD_HD void jet_add_quadratic_upper(const Team& t, int n, int p, int N, const S*
       for (int b = 0; b < p; ++b) {
         const S x = Ti[a * p + b];
         if (so_skippable(x)) continue;
-        const S* yb = Y + static_cast<long>(b) * N;
-        for (int k = 0; k < N; ++k) ta[k] += x * yb[k];
+        jet_axpy(0, N, x, Y + static_cast<long>(b) * N, ta);
       }
     });
     t.each(static_cast<long>(n) * N, [&](long e) {
@@ -83,9 +85,7 @@ RBD_HD void jet_add_quadratic_upper(const Team& t, int n, int p, int N, const S*
       for (int a = 0; a < p; ++a) {
         const S y = Y[static_cast<long>(a) * N + j];
         if (so_skippable(y)) continue;
-        const S sy = s * y;
-        const S* ta = tmp + i * pN + static_cast<long>(a) * N;
-        for (long k = j; k < N; ++k) h[k] += sy * ta[k];
+        jet_axpy(j, N, s * y, tmp + i * pN + static_cast<long>(a) * N, h);
       }
     });
   }
@@ -101,9 +101,7 @@ RBD_HD void jet_add_linear_upper(const Team& t, int n, int p, int N, const S* F,
     for (int a = 0; a < p; ++a) {
       const S f = F[i * p + a];
       if (so_skippable(f)) continue;
-      const S sf = s * f;
-      const S* src = Hin + a * NN + j * N;
-      for (long k = j; k < N; ++k) h[k] += sf * src[k];
+      jet_axpy(j, N, s * f, Hin + a * NN + j * N, h);
     }
   });
 }

@@ -31,6 +31,14 @@
 #else
 #define RBD_FLATTEN
 #endif
+// a large host function kept out of line whatever its callers' size: inlined into the step Hessian's
+// driver, the jets' composition (integrator_hessian.hpp) ran the same instructions 25-45 % slower on
+// floating HyQ and Atlas. Device code: nvcc's own rules
+#if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
+#define RBD_NOINLINE __attribute__((noinline))
+#else
+#define RBD_NOINLINE
+#endif
 // the vectors the host column loops (minv.hpp, dense.hpp) take first, in bytes: 16 (SSE2, x86-64's
 // baseline, what the library is built for), 32 under AVX (a per-robot instance compiled with
 // -march=native); then 16 bytes, then single entries, every column with the same operations in the
