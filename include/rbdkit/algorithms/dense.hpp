@@ -88,7 +88,8 @@ template <typename S> RBD_HD bool spd_inverse(S* A, int n, S* Ainv) {
 //
 // In host code that nvcc does not see, for double and float: register blocks
 // of 2 rows x 4 vectors (GCC/clang vector extensions, 16-byte vectors, so
-// 2 x 8 doubles or 2 x 16 floats: SSE2 with no -march), whose accumulators
+// 2 x 8 doubles or 2 x 16 floats: SSE2 with no -march; 32-byte vectors first
+// where the compiler targets AVX, RBD_HOST_VECTOR_BYTES), whose accumulators
 // stay in registers over k. Left to itself the compiler vectorises the k loop
 // as a reduction instead, which costs twice the instructions. Elsewhere
 // (CUDA sources, SIMD packs, dual numbers): the plain triple loop, the same
@@ -135,7 +136,7 @@ inline void neg_matmul_rows(const S* RBD_RESTRICT A, const S* RBD_RESTRICT B, in
   int c = 0;
   for (; c + 4 * W <= cols; c += 4 * W) neg_matmul_block<S, R, 4, RBD_HOST_VECTOR_BYTES>(A, B, n, cols, r, c, out);
   for (; c + W <= cols; c += W) neg_matmul_block<S, R, 1, RBD_HOST_VECTOR_BYTES>(A, B, n, cols, r, c, out);
-  if (W > L)
+  if constexpr (W > L)
     for (; c + L <= cols; c += L) neg_matmul_block<S, R, 1, 16>(A, B, n, cols, r, c, out);
   for (; c < cols; ++c)
     for (int i = r; i < r + R; ++i) {
@@ -165,8 +166,9 @@ template <typename S> RBD_HD void neg_matmul(const S* RBD_RESTRICT A, const S* R
 // symmetric B, as M⁻¹) when only the rows listed meet a nonzero of A's column a (stride lda).
 // Each entry is summed from 0 in that order, so with the zero terms of a dense product left out
 // it is that product's number. Host double and float: up to 8 vectors of 16 bytes per register
-// block (8, 4, 2, 1), as neg_matmul, the plain loop for the tail; elsewhere the plain loop
-// (from entry r0).
+// block (8, 4, 2, 1), as neg_matmul, after blocks of 4, 2 and 1 vectors of 32 bytes where the
+// compiler targets AVX (RBD_HOST_VECTOR_BYTES); the plain loop for the tail; elsewhere the plain
+// loop (from entry r0).
 template <typename S>
 RBD_HD void scaled_row_sum_plain(const S* B, const S* a, int lda, int n, const int* rows, int count, S* out,
                                  int r0 = 0) {
@@ -208,7 +210,7 @@ RBD_HD void scaled_row_sum(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     constexpr int L = 16 / sizeof(S), W = RBD_HOST_VECTOR_BYTES / sizeof(S);
     int r = 0;
-    if (W > L) {  // wider vectors first (an instance compiled for AVX or AVX-512): 4, 2, 1 of them
+    if constexpr (W > L) {  // wider vectors first (an instance compiled for AVX or AVX-512): 4, 2, 1 of them
       constexpr int VB = RBD_HOST_VECTOR_BYTES;
       for (; r + 4 * W <= n; r += 4 * W) detail::scaled_row_sum_block<S, 4, VB>(B, a, lda, n, rows, count, r, out);
       if (r + 2 * W <= n) detail::scaled_row_sum_block<S, 2, VB>(B, a, lda, n, rows, count, r, out), r += 2 * W;

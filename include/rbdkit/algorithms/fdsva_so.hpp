@@ -69,50 +69,106 @@ template <typename S> RBD_HD void so_apply_neg_minv(const ModelView<S>& m, Works
 
 // the second-order part of fdsva_so from its first order at the same point: qdd = FD(q, qd, u),
 // Gq = ∂qdd/∂q and Gv = ∂qdd/∂qd (nv x nv), with w.dense as aba_derivatives leaves it (M⁻¹; a mimic
-// model: M's Cholesky factor). A team's step Hessian (plant/integrator_hessian.hpp), which has the
-// first order already, calls it directly. Uses w.so_dense past its first 2nv² values. Inlined: fdsva_so
-// is then the one function it was (left a call, floating HyQ's rk4 step Hessian ran 10 % slower)
-template <typename S>
-RBD_HD_INLINE void fdsva_so_second_order(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
-                                  S gravity, const S* Gq, const S* Gv, S* d2qdd_dq2, S* d2qdd_dqd2,
-                                  S* d2qdd_dqdqd, S* d2qdd_dqdu) {
+// model: M's Cholesky factor). The step Hessian (plant/integrator_hessian.hpp), which has the first
+// order already, calls it directly. Uses w.so_dense past its first 2nv² values. Inlined: fdsva_so
+// is then the one function it was (left a call, floating HyQ's rk4 step Hessian ran 10 % slower).
+// On a cooperative team (a model without mimic joints): IDSVA-SO on one thread, then the products
+// with ∂M/∂q a row (i, j) per index and those with -M⁻¹ a column per index, in team_blk (nv³
+// values); each entry is summed in the order one thread sums it
+template <typename S, typename Team = InlineTeam>
+RBD_HD_INLINE void fdsva_so_second_order(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
+                                         const S* qdd, S gravity, const S* Gq, const S* Gv, S* d2qdd_dq2,
+                                         S* d2qdd_dqd2, S* d2qdd_dqdqd, S* d2qdd_dqdu, const Team& t = Team{},
+                                         S* team_blk = nullptr) {
   const int nv = m.nv;
   const long nn = static_cast<long>(nv) * nv;
   S* Mi = w.so_dense + 2 * nn;  // M⁻¹
-  S* blk = Mi + nn;
-  if (m.has_mimic) {
-    for (int c = 0; c < nv; ++c) {
-      S* row = Mi + c * nv;
-      for (int r = 0; r < nv; ++r) row[r] = r == c ? S(1) : S(0);
-      cholesky_solve(w.dense, nv, row);
+  (void)t, (void)team_blk;
+  if constexpr (!Team::cooperative) {
+    S* blk = Mi + nn;
+    if (m.has_mimic) {
+      for (int c = 0; c < nv; ++c) {
+        S* row = Mi + c * nv;
+        for (int r = 0; r < nv; ++r) row[r] = r == c ? S(1) : S(0);
+        cholesky_solve(w.dense, nv, row);
+      }
+    } else {
+      for (long k = 0; k < nn; ++k) Mi[k] = w.dense[k];
     }
+    // second-order inverse dynamics at that acceleration; ∂M/∂q held in the last output for now
+    S* dM = d2qdd_dqdu;
+    idsva_so(m, w, q, qd, qdd, gravity, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, dM);
+    // the ∂M/∂q · ∂qdd terms, row by row
+    for (int i = 0; i < nv; ++i) {
+      const S* dMi = dM + i * nn;
+      so_transpose_times(nv, dMi, Gq, blk);
+      S* o = d2qdd_dq2 + i * nn;
+      for (int j = 0; j < nv; ++j)
+        for (int k = 0; k < nv; ++k) o[j * nv + k] += blk[j * nv + k] + blk[k * nv + j];
+      so_transpose_times(nv, dMi, Gv, blk);
+      o = d2qdd_dqdqd + i * nn;
+      for (long k = 0; k < nn; ++k) o[k] += blk[k];
+    }
+    // ∂M/∂q_j M⁻¹, in place row by row
+    for (int i = 0; i < nv; ++i) {
+      so_transpose_times(nv, dM + i * nn, Mi, blk);
+      for (long k = 0; k < nn; ++k) dM[i * nn + k] = blk[k];
+    }
+    // -M⁻¹ on the first index of all four
+    so_apply_neg_minv(m, w, d2qdd_dq2, blk);
+    so_apply_neg_minv(m, w, d2qdd_dqd2, blk);
+    so_apply_neg_minv(m, w, d2qdd_dqdqd, blk);
+    so_apply_neg_minv(m, w, d2qdd_dqdu, blk);
   } else {
-    for (long k = 0; k < nn; ++k) Mi[k] = w.dense[k];
+    t.each(nn, [&](long k) { Mi[k] = w.dense[k]; });
+    S* dM = d2qdd_dqdu;
+    t.one([&] { idsva_so(m, w, q, qd, qdd, gravity, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, dM); });
+    // the blocks b_i = dM_iᵀ G of so_transpose_times a row (i, j) per index, each entry summed over m in
+    // its order; each product's uses of b_i in a phase after it (they read b_i's other rows)
+    S* b = team_blk;
+    auto block_row = [&](long i, long j, const S* G) {  // row j of b_i = Σ_m dM_i[m, j] G[m, :]
+      const S* A = dM + i * nn;
+      S* r = b + i * nn + j * nv;
+      for (int k = 0; k < nv; ++k) r[k] = S(0);
+      for (int mm = 0; mm < nv; ++mm) {
+        const S x = A[mm * nv + j];
+        if (so_skippable(x)) continue;
+        const S* g = G + mm * nv;
+        for (int k = 0; k < nv; ++k) r[k] += x * g[k];
+      }
+    };
+    // the ∂M/∂q · ∂qdd terms
+    t.each2(nv, nv, [&](long i, long j) { block_row(i, j, Gq); });
+    t.each2(nv, nv, [&](long i, long j) {
+      const S* bi = b + i * nn;
+      S* o = d2qdd_dq2 + i * nn + j * nv;
+      for (int k = 0; k < nv; ++k) o[k] += bi[j * nv + k] + bi[k * nv + j];
+    });
+    t.each2(nv, nv, [&](long i, long j) { block_row(i, j, Gv); });
+    t.each2(nv, nv, [&](long i, long j) {
+      for (int k = 0; k < nv; ++k) d2qdd_dqdqd[i * nn + j * nv + k] += b[i * nn + j * nv + k];
+    });
+    // ∂M/∂q_j M⁻¹, then in place (every row of dM_i is read for each row of b_i)
+    t.each2(nv, nv, [&](long i, long j) { block_row(i, j, Mi); });
+    t.each2(nv, nv, [&](long i, long j) {
+      for (int k = 0; k < nv; ++k) dM[i * nn + j * nv + k] = b[i * nn + j * nv + k];
+    });
+    // -M⁻¹ on the first index of all four: column c of each (nv entries nn apart) through its own nv values
+    S* X[4] = {d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, d2qdd_dqdu};
+    for (S* Xt : X)
+      t.each(nn, [&](long c) {
+        bool zero = true;
+        for (int r = 0; r < nv && zero; ++r) zero = so_skippable(Xt[r * nn + c]);
+        if (zero) return;
+        S* x = team_blk + c * nv;
+        for (int r = 0; r < nv; ++r) x[r] = Xt[r * nn + c];
+        for (int r = 0; r < nv; ++r) {
+          S acc = S(0);
+          for (int k = 0; k < nv; ++k) acc += w.dense[r * nv + k] * x[k];
+          Xt[r * nn + c] = -acc;
+        }
+      });
   }
-  // second-order inverse dynamics at that acceleration; ∂M/∂q held in the last output for now
-  S* dM = d2qdd_dqdu;
-  idsva_so(m, w, q, qd, qdd, gravity, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, dM);
-  // the ∂M/∂q · ∂qdd terms, row by row
-  for (int i = 0; i < nv; ++i) {
-    const S* dMi = dM + i * nn;
-    so_transpose_times(nv, dMi, Gq, blk);
-    S* o = d2qdd_dq2 + i * nn;
-    for (int j = 0; j < nv; ++j)
-      for (int k = 0; k < nv; ++k) o[j * nv + k] += blk[j * nv + k] + blk[k * nv + j];
-    so_transpose_times(nv, dMi, Gv, blk);
-    o = d2qdd_dqdqd + i * nn;
-    for (long k = 0; k < nn; ++k) o[k] += blk[k];
-  }
-  // ∂M/∂q_j M⁻¹, in place row by row
-  for (int i = 0; i < nv; ++i) {
-    so_transpose_times(nv, dM + i * nn, Mi, blk);
-    for (long k = 0; k < nn; ++k) dM[i * nn + k] = blk[k];
-  }
-  // -M⁻¹ on the first index of all four
-  so_apply_neg_minv(m, w, d2qdd_dq2, blk);
-  so_apply_neg_minv(m, w, d2qdd_dqd2, blk);
-  so_apply_neg_minv(m, w, d2qdd_dqdqd, blk);
-  so_apply_neg_minv(m, w, d2qdd_dqdu, blk);
 }
 
 // the four (nv x nv x nv) tensors above; qdd (nv) too when not null. Uses

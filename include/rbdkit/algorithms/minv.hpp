@@ -87,10 +87,6 @@ template <typename S, typename Body> RBD_HD_INLINE void minv_columns(int c0, int
   int c = c0;
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
-#if RBD_HOST_VECTOR_BYTES >= 64
-    typedef S V64 __attribute__((vector_size(64)));
-    for (; c + int(64 / sizeof(S)) <= c1; c += 64 / sizeof(S)) body(c, V64{});
-#endif
 #if RBD_HOST_VECTOR_BYTES >= 32
     typedef S V32 __attribute__((vector_size(32)));
     for (; c + int(32 / sizeof(S)) <= c1; c += 32 / sizeof(S)) body(c, V32{});

@@ -108,12 +108,14 @@ RBD_HD void joint_retraction_hessian(int type, const S* q0, const S* w, const S*
 // scratch values of retraction_jet
 RBD_HD long retraction_jet_scratch_values(int nv) { return 2L * nv * nv + 6 * 12 * 12 + 2L * 12 * 3 * nv; }
 
-// a cooperative team's memory for the step Hessian beside its scratch, in values: the products T[i] Y
-// of every row i at once (compose_acceleration_jet's nv x 2nv x N, a curved part's 6 x 12 x N:
-// jet_quadratic_tmp_values)
+// a cooperative team's memory for the step Hessian beside its scratch, in values, the largest of
+// its uses one after another: jet_add_quadratic_upper's products T[i] Y of every row i at once
+// (n x p x N: compose_acceleration_jet's nv x 2nv x N, a curved part's at most 6 x 12 x N) and
+// FDSVA-SO's blocks (nv³: fdsva_so_second_order)
 RBD_HD long integrator_hessian_team_values(int nv) {
-  const long N = 3L * nv, compose = 2L * nv * nv * N, retraction = 72L * N;
-  return compose > retraction ? compose : retraction;
+  const long N = 3L * nv, compose = 2L * nv * nv * N, retraction = 72L * N, fdsva = 1L * nv * nv * nv;
+  const long m = compose > retraction ? compose : retraction;
+  return m > fdsva ? m : fdsva;
 }
 
 // The jet of a stage configuration q_s = (q0 ⊕ δq) ⊕ w(z) in Conv's ⊕, given
@@ -165,14 +167,15 @@ RBD_HD void retraction_jet(const ModelView<S>& m, const S* q0, const S* w, const
 // Fq = ∂a/∂ξ, Fv = ∂a/∂v, Fu = ∂a/∂u = M⁻¹ (nv x nv each); T (nv x 2nv x 2nv)
 // per row i the symmetric Hessian in (ξ, v); Aqu = ∂²a/∂ξ∂u (nv x nv x nv,
 // [(i·nv + b)·nv + c]); ∂²a/∂v∂u = ∂²a/∂u² = 0. Uses w (aba_derivatives,
-// fdsva_so) and 3nv³ scratch values. false if M is not PD. On team t: the
+// fdsva_so_second_order) and 3nv³ scratch values. false if M is not PD. On team t: the
 // first order by PinocchioStep's (aba_derivatives_team on a cooperative team,
-// in t.extra), FDSVA-SO's second order on that first order on one thread
-// (fdsva_so_second_order: not forming ∇FD again), T's rows side by side
+// in t.extra), FDSVA-SO's second order on that first order (fdsva_so_second_order:
+// not forming ∇FD again; on a team in team_tmp, integrator_hessian_team_values),
+// T's rows side by side
 template <typename S, typename Team = InlineTeam>
 RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v, const S* u,
                                  S gravity, S* a, S* Fq, S* Fv, S* Fu, S* T, S* Aqu, S* scratch,
-                                 const Team& t = Team{}) {
+                                 const Team& t = Team{}, S* team_tmp = nullptr) {
   const int nv = m.nv, p = 2 * nv;
   const long nn = static_cast<long>(nv) * nv;
   S* Aqq = scratch;        // ∂²a/∂q∂q (nv x nv x nv, iterated)
@@ -183,7 +186,7 @@ RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S
                                                   Fv, Fu, static_cast<S*>(nullptr)))
     return false;
   // second order: T = [[sym Aqq, Aqv], [Aqvᵀ, Avv]]
-  t.one([&] { fdsva_so_second_order(m, w, q, v, a, gravity, Fq, Fv, Aqq, Avv, Aqv, Aqu); });
+  fdsva_so_second_order(m, w, q, v, a, gravity, Fq, Fv, Aqq, Avv, Aqv, Aqu, t, team_tmp);
   t.each(nv, [&](long i) {
     const long o = i * nn;
     S* Ti = T + i * p * p;
@@ -269,7 +272,7 @@ RBD_HD bool acceleration_jet(PinocchioStep<S>, const ModelView<S>& m, Workspace<
   S* T = Fu + nn;           // (nv x 2nv x 2nv)
   S* Aqu = T + 4 * nn * nv; // (nv x nv x nv)
   S* work = Aqu + nn * nv + m.nq + 2L * nv;
-  if (!acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work, t)) return false;
+  if (!acceleration_tensors(m, w, q, v, u, gravity, a, Fq, Fv, Fu, T, Aqu, work, t, team_tmp)) return false;
   compose_acceleration_jet(nv, Fq, Fv, Fu, T, Aqu, Dq, Hq, Dv, Hv, Da, Ha, work, t, team_tmp);
   return true;
 }
@@ -314,8 +317,8 @@ RBD_HD long integrator_hessian_scratch_values(int nq, int nv) {
 // (PinocchioStep or MujocoStep). false if M is not PD at a stage. On team t
 // (model/team.hpp; a cooperative one in Pinocchio's coordinates, on a model
 // without mimic joints): each stage's first derivatives by
-// aba_derivatives_team (in t.extra), FDSVA-SO and the retraction maps on one
-// thread, the jets' products and sums side by side; team_tmp:
+// aba_derivatives_team (in t.extra), IDSVA-SO and the retraction maps on one
+// thread, FDSVA-SO's and the jets' products and sums side by side; team_tmp:
 // integrator_hessian_team_values(nv) values (unused by one thread)
 template <template <typename> class Conv, typename S, typename Team = InlineTeam>
 RBD_HD bool integrator_hessian_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,

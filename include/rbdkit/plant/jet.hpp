@@ -28,16 +28,11 @@ RBD_HD_INLINE void jet_axpy(long k0, long n, S a, const S* RBD_RESTRICT x, S* RB
   for (long k = k0; k < n; ++k) y[k] += a * x[k];
 }
 
-// the values of jet_add_quadratic_upper's tmp on team t: p x N on one thread, n x p x N on a
-// cooperative team (every T[i] Y at once)
-template <typename Team> RBD_HD long jet_quadratic_tmp_values(int n, int p, int N) {
-  return (Team::cooperative ? static_cast<long>(n) : 1L) * p * N;
-}
-
 // H[i] += s · Yᵀ T[i] Y on k >= j: H[i, j, k] += s Σ_ab T[i, a, b] Y[a, j] Y[b, k]
-// (T n x p x p, each T[i] symmetric; Y p x N; H n x N x N); tmp: jet_quadratic_tmp_values. One
-// thread forms T[i] Y in tmp and adds Yᵀ tmp row by row of Y, i after i (skipping a T[i] = 0); a
-// cooperative team forms every T[i] Y (a row (i, a) per index), then H's rows (i, j)
+// (T n x p x p, each T[i] symmetric; Y p x N; H n x N x N). One thread forms T[i] Y in tmp (p x N
+// values) and adds Yᵀ tmp row by row of Y, i after i (skipping a T[i] = 0); a cooperative team forms
+// every T[i] Y in tmp (n x p x N values; a row (i, a) per index), then H's rows (i, j), adding the
+// products by a T[i] = 0 too (the same sums but for the sign of a zero)
 template <typename Team, typename S>
 RBD_HD void jet_add_quadratic_upper(const Team& t, int n, int p, int N, const S* T, const S* Y, S s, S* H, S* tmp) {
   const long NN = static_cast<long>(N) * N, pN = static_cast<long>(p) * N;
