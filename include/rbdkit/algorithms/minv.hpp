@@ -69,7 +69,8 @@ RBD_HD bool minv_joint_inertia(const BodyDesc<S>& b, const Transform<S>& X_world
 // work over its columns is six streams read and written side by side, one row of M⁻¹ with them.
 // minv_columns calls body(c, lane) for each column c, or for a vector of columns at a time (lane: a
 // GCC/clang vector of RBD_HOST_VECTOR_BYTES, then of 16 bytes) in host code that nvcc does not see, in
-// double and float; lanes_load/lanes_store move one lane's worth. Each column's operations are the same, in the same order, on either path.
+// double and float; lanes_load/lanes_store move one lane's worth. Each column's operations are the
+// same, in the same order, on either path.
 template <typename T, typename S> RBD_HD T lanes_load(const S* p) {
   if constexpr (std::is_same<T, S>::value) {
     return *p;

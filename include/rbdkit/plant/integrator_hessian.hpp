@@ -207,9 +207,10 @@ RBD_HD bool acceleration_tensors(const ModelView<S>& m, Workspace<S>& w, const S
 // retraction_jet (team_tmp: a cooperative team's products). Out of line on the
 // host (RBD_NOINLINE)
 template <typename S, typename Team = InlineTeam>
-RBD_NOINLINE RBD_HD void compose_acceleration_jet(int nv, const S* Fq, const S* Fv, const S* Fu, const S* T, const S* Aqu,
-                                     const S* Dq, const S* Hq, const S* Dv, const S* Hv, S* Da, S* Ha, S* scratch,
-                                     const Team& t = Team{}, S* team_tmp = nullptr) {
+RBD_NOINLINE RBD_HD void compose_acceleration_jet(int nv, const S* Fq, const S* Fv, const S* Fu, const S* T,
+                                                  const S* Aqu, const S* Dq, const S* Hq, const S* Dv, const S* Hv,
+                                                  S* Da, S* Ha, S* scratch, const Team& t = Team{},
+                                                  S* team_tmp = nullptr) {
   const int N = 3 * nv, p = 2 * nv;
   const long nn = static_cast<long>(nv) * nv, NN = static_cast<long>(N) * N, Dm = nv * static_cast<long>(N);
   S* Y = scratch;       // [Dq; Dv] (2nv x N)
