@@ -26,17 +26,20 @@ template <typename S> RBD_HD bool so_skippable(const S&) { return false; }
 RBD_HD bool so_skippable(double x) { return x == 0.0; }
 RBD_HD bool so_skippable(float x) { return x == 0.0f; }
 
-// R (nv x nv) = Aᵀ G: R[j][k] = Σ_m A[m][j] G[m][k], A = one row i of ∂M/∂q (m, j)
+// row j of R = Aᵀ G (nv): r[k] = Σ_m A[m][j] G[m][k], summed over m in order, A = one row i of
+// ∂M/∂q (m, j), its zero entries skipped
+template <typename S> RBD_HD void so_transpose_times_row(int nv, const S* A, const S* G, int j, S* r) {
+  for (int k = 0; k < nv; ++k) r[k] = S(0);
+  for (int mm = 0; mm < nv; ++mm) {
+    const S a = A[mm * nv + j];
+    if (so_skippable(a)) continue;
+    const S* g = G + mm * nv;
+    for (int k = 0; k < nv; ++k) r[k] += a * g[k];
+  }
+}
+// R (nv x nv) = Aᵀ G, row by row (a team's FDSVA-SO computes the rows side by side)
 template <typename S> RBD_HD void so_transpose_times(int nv, const S* A, const S* G, S* R) {
-  for (int k = 0; k < nv * nv; ++k) R[k] = S(0);
-  for (int mm = 0; mm < nv; ++mm)
-    for (int j = 0; j < nv; ++j) {
-      const S a = A[mm * nv + j];
-      if (so_skippable(a)) continue;
-      const S* g = G + mm * nv;
-      S* r = R + j * nv;
-      for (int k = 0; k < nv; ++k) r[k] += a * g[k];
-    }
+  for (int j = 0; j < nv; ++j) so_transpose_times_row(nv, A, G, j, R + j * nv);
 }
 
 // X (nv x nv², row i the flattened (j, k) slice) <- -M⁻¹ X, after
@@ -123,19 +126,11 @@ RBD_HD_INLINE void fdsva_so_second_order(const ModelView<S>& m, Workspace<S>& w,
     t.each(nn, [&](long k) { Mi[k] = w.dense[k]; });
     S* dM = d2qdd_dqdu;
     t.one([&] { idsva_so(m, w, q, qd, qdd, gravity, d2qdd_dq2, d2qdd_dqd2, d2qdd_dqdqd, dM); });
-    // the blocks b_i = dM_iᵀ G of so_transpose_times a row (i, j) per index, each entry summed over m in
-    // its order; each product's uses of b_i in a phase after it (they read b_i's other rows)
+    // the blocks b_i = dM_iᵀ G of so_transpose_times a row (i, j) per index; each product's uses of b_i
+    // in a phase after it (they read b_i's other rows)
     S* b = team_blk;
-    auto block_row = [&](long i, long j, const S* G) {  // row j of b_i = Σ_m dM_i[m, j] G[m, :]
-      const S* A = dM + i * nn;
-      S* r = b + i * nn + j * nv;
-      for (int k = 0; k < nv; ++k) r[k] = S(0);
-      for (int mm = 0; mm < nv; ++mm) {
-        const S x = A[mm * nv + j];
-        if (so_skippable(x)) continue;
-        const S* g = G + mm * nv;
-        for (int k = 0; k < nv; ++k) r[k] += x * g[k];
-      }
+    auto block_row = [&](long i, long j, const S* G) {
+      so_transpose_times_row(nv, dM + i * nn, G, static_cast<int>(j), b + i * nn + j * nv);
     };
     // the ∂M/∂q · ∂qdd terms
     t.each2(nv, nv, [&](long i, long j) { block_row(i, j, Gq); });

@@ -269,8 +269,8 @@ template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::Integrato
 // the step's Hessian (integrator_hessian.hpp), every scheme: integrator_hessian_with on the team (each
 // stage's ∇FD by aba_derivatives_team, IDSVA-SO and the retraction maps on one thread, FDSVA-SO's and
 // the jets' products and sums an entry or a row per index); the reference form's correction on one
-// thread. MuJoCo's convention has no team form, nor does a mimic model (the engine gives it the
-// sample kernel): where the team is asked for, the registry's kernel runs on one thread. extra:
+// thread. MuJoCo's convention has no team form: where the team is asked for, the registry's kernel
+// runs on one thread (a mimic model never gets the team: the engine's uses_team). extra:
 // aba_derivatives_team's memory, the team's products (integrator_hessian_team_values), a flag
 template <> struct TeamOp<ops::PlantStepHessian> {
   static constexpr bool available = true;
@@ -282,7 +282,7 @@ template <> struct TeamOp<ops::PlantStepHessian> {
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
     int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, m.nv) - 16);
-    if (a.choice[5] != kPinocchioConvention || m.has_mimic) {
+    if (a.choice[5] != kPinocchioConvention) {
       t.one([&] { *ok = ops::PlantStepHessian::run(m, w, a); });
       return *ok;
     }
