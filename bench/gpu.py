@@ -13,9 +13,12 @@ and scratch) forced into global memory and into the block's shared memory
 (RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits and the
 batch runs in at most three waves there; docs/cuda.md).
 
+With --ops, also a state cost (tangent), the momentum cost and the position
+barrier (not timed by default).
+
 With --kernels: two more resident columns, the operations that have a team
-kernel (ID, M⁻¹, FD, ∇ID, ∇FD, the step gradient: a block of threads per
-sample) forced to the sample-per-thread kernel and to the team kernel
+kernel (ID, M⁻¹, FD, ∇ID, ∇FD, the step gradient and Hessian, the costs and
+barriers: a block of threads per sample) forced to the sample-per-thread kernel and to the team kernel
 (RBDKIT_CUDA_KERNEL; the default, "auto", picks by B per SM and by nv;
 docs/cuda.md, "Team kernels"); "-" for the others.
 
@@ -54,9 +57,12 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("∇ID", "inverse_dynamics_gradient"), ("∇FD", "forward_dynamics_gradient"),
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
+# the costs and barriers, timed only when --ops names them (the team kernels' per-SM rule)
+COST_OPS = (("state cost", "quadratic_state_cost_tangent"), ("momentum cost", "momentum_cost"),
+            ("q barrier", "joint_position_barrier"))
 # the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
 TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
-            "integrator_gradient", "plant_step_hessian")
+            "integrator_gradient", "plant_step_hessian") + tuple(o[1] for o in COST_OPS)
 # the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops)
 INSTANCE_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
                 "forward_dynamics_gradient", "integrator_gradient")
@@ -94,6 +100,13 @@ def arguments(h, op, B, rng):
         return (q, qd, u), {"dt": 0.01, "integrator_type": "rk4"}
     if op == "plant_step_hessian":
         return (np.concatenate([q, qd], axis=1), u), {"dt": 0.01, "integrator_type": "euler"}
+    if op == "quadratic_state_cost_tangent":
+        x = np.concatenate([q, qd], axis=1)
+        return (x, x[::-1].copy(), np.ones((B, 2 * h.nv), dt)), {}
+    if op == "momentum_cost":
+        return (q, qd, rng.uniform(-1, 1, (B, 6)).astype(dt), np.ones((B, 6), dt)), {}
+    if op == "joint_position_barrier":
+        return (q, np.full_like(q, -10), np.full_like(q, 10)), {"mu": 0.1}
     return (q, qd, u), {}
 
 
@@ -191,7 +204,8 @@ def main():
                          "of floating Atlas is 6.7 MB per knot point")
     ap.add_argument("--batches", help="comma-separated batch sizes, e.g. 1,256,4096 (default: 1 to 16384)")
     ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
-    ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight)")
+    ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight; "
+                    "also momentum_cost, quadratic_state_cost_tangent, joint_position_barrier)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
                     help="the device arrays of the resident column")
     ap.add_argument("--kernels", action="store_true",
@@ -221,11 +235,11 @@ def main():
             ap.error(f"--batches: expected positive batch sizes, got {a.batches!r}")
     ops = OPS
     if a.ops:
-        known_ops = {o[1] for o in OPS}
+        known_ops = {o[1] for o in OPS + COST_OPS}
         unknown = [n for n in a.ops.split(",") if n not in known_ops]
         if unknown:
             ap.error(f"--ops: unknown {', '.join(unknown)}; expected some of {', '.join(sorted(known_ops))}")
-        ops = [o for o in OPS if o[1] in a.ops.split(",")]
+        ops = [o for o in OPS + COST_OPS if o[1] in a.ops.split(",")]
     dev = device_module(a.arrays)
     warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias
     nosync = lambda: None  # noqa: E731

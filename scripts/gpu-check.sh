@@ -64,7 +64,8 @@ if [[ -x build/gpu/cuda_stage_latency ]]; then
     "build/gpu/cuda_stage_latency robots > build/gpu/stage_latency.md"
 fi
 
-# ---- compute-sanitizer on a small batch (one model, every operation): memcheck (global and shared
+# ---- compute-sanitizer on a small batch (a chain and a branched floating robot, every operation, the
+# team kernels among them; about 40 s more per tool for the branched one): memcheck (global and shared
 # memory, launch errors); racecheck (shared-memory races: each thread's work slice must not overlap
 # another's, and a team kernel's threads share their sample's); synccheck (a team kernel's barriers
 # reached by every thread of its block)
@@ -73,7 +74,7 @@ if command -v compute-sanitizer >/dev/null; then
     step "compute-sanitizer --tool $tool" env RBDKIT_TEST_CUDA_DEVICE=1 timeout "${SANITIZER_TIMEOUT:-300}" \
       compute-sanitizer --tool "$tool" \
       --error-exitcode 1 build/gpu/tests/cpp/rbdkit_tests \
-      --gtest_filter='Models/CudaModels.*/iiwa_fixed:Cuda.SharedBlocksOfManySamples'
+      --gtest_filter='Models/CudaModels.*/iiwa_fixed:Models/CudaModels.*/hyq_floating:Cuda.SharedBlocksOfManySamples'
   done
 else
   summary+=("| compute-sanitizer | not found |")

@@ -101,6 +101,7 @@ struct CudaEngine::Impl {
   std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample
   std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
   std::vector<int> team_wide_nv;           // per operation: TeamOp<Op>::wide_nv
+  std::vector<int> team_mujoco_form;       // per operation: TeamOp<Op>::mujoco_form
   cuda::DeviceLimits limits{};
   std::shared_ptr<const CudaInstance> instance;  // use_instance: the robot's own kernels (null: none)
   std::mutex call;
@@ -125,11 +126,12 @@ struct CudaEngine::Impl {
       team_extra.assign(ops::op_table().size(), 0);
       team_per_sm.assign(ops::op_table().size(), 0);
       team_wide_nv.assign(ops::op_table().size(), 0);
+      team_mujoco_form.assign(ops::op_table().size(), 0);
       if (d == "float64")
         cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
-                                  team_wide_nv.data());
+                                  team_wide_nv.data(), team_mujoco_form.data());
       else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
-                                    team_wide_nv.data());
+                                    team_wide_nv.data(), team_mujoco_form.data());
       failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
       *failed_host = 0;
       failed_device = static_cast<int*>(dev->device_address(failed_host));
@@ -166,11 +168,12 @@ struct CudaEngine::Impl {
   // faster on iiwa up to 8 samples per SM for ID, M⁻¹, FD, ∇ID and ∇FD and up to 32 for the rk4
   // step's gradient, level or slower past them, and faster on floating Atlas at every B but ID's
   // from B = 4096. A step in MuJoCo's convention has no team form (its team runs it on one thread):
-  // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention)
+  // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention); the costs
+  // and barriers have theirs in both conventions (mujoco_form)
   bool uses_team(int op, long B, int convention) const {
     if (!team_per_sm[op] || model.general_path() || kernel == "sample") return false;  // (0: no team kernel)
     if (kernel == "team") return true;
-    if (convention != kPinocchioConvention) return false;
+    if (convention != kPinocchioConvention && !team_mujoco_form[op]) return false;
     return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
            (team_wide_nv[op] > 0 && model.nv >= team_wide_nv[op]);
   }

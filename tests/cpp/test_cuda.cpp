@@ -310,6 +310,84 @@ TEST(Cuda, TeamKernelsEqualCpu) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_kernel("warp"), std::invalid_argument);
 }
 
+// the costs' and barriers' team forms (plant/costs.hpp) against the serial loop: every test model, both
+// dtypes and both output conventions, the work in shared and in global memory. auto takes the team on a
+// small batch in either convention, and at every B from nv = 16 on but for the barriers (O(nv));
+// a barrier outside its interval gives +inf and NaN where the CPU does; a robot without mass fails
+// com_cost and momentum_cost by the team with the CPU's message
+TEST(Cuda, TeamCostsEqualCpu) {
+  const char* names[] = {"quadratic_state_cost",   "quadratic_input_cost",   "quadratic_state_cost_tangent",
+                         "ee_pos_cost",            "com_cost",               "momentum_cost",
+                         "joint_position_barrier", "joint_velocity_barrier", "joint_torque_barrier"};
+  for (const ModelCase& mc : rbd_test::all_cases()) {
+    const Model m = Model::from_urdf_file(mc.path, mc.floating);
+    SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
+    rbd::Handle serial(m);
+    const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
+    for (const char* name : names) {
+      SCOPED_TRACE(name);
+      const int id = ops::find_op(name);
+      const ops::OpSpec& op = *ops::op_table()[id].spec;
+      const bool barrier = std::string(op.algorithm) == "barriers";
+      int convention_arg = -1;
+      for (int k = 0; k < op.n_args; ++k)
+        if (op.args[k].kind == ops::kConvention) convention_arg = k;
+      ASSERT_GE(convention_arg, 0);
+      Inputs in = make_inputs(m, op, 5, 13, true);
+      for (int convention : {0, 1}) {
+        SCOPED_TRACE(convention);
+        in.call.choice[convention_arg] = convention;
+        EXPECT_EQ(p64->cuda()->kernel_for(id, 5, convention), m.has_mimic() ? "sample" : "team");
+        const bool wide = m.nv >= 16 && !barrier;
+        EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000, convention), m.has_mimic() || !wide ? "sample" : "team");
+        const std::vector<double> ref = run<double>(serial, id, in);
+        for (const char* where : {"shared", "global"}) {
+          p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);
+          try {
+            EXPECT_LE(max_rel_err(run<double>(*p64, id, in), ref), float64_bound(op)) << where;
+            EXPECT_LE(max_rel_err(run<float>(*p32, id, in), ref), float32_bound(op)) << where;
+          } catch (const std::invalid_argument& x) {  // (floating Atlas: a slice larger than a block's)
+            EXPECT_STREQ(where, "shared");
+            EXPECT_NE(std::string(x.what()).find("exceeds a block's shared memory"), std::string::npos) << x.what();
+          }
+        }
+        p64->cuda()->set_work_memory("auto"), p32->cuda()->set_work_memory("auto");
+      }
+      if (!barrier || m.has_mimic()) continue;
+      // sample 3's second coordinate past its upper bound (every bound but each third one is finite):
+      // that sample's value +inf, that coordinate's gradient and Hessian entries NaN, as on the CPU
+      Inputs out = in;
+      const long n = ops::arg_values(op.args[0], m, 0);
+      out.arrays[0][3 * n + 1] = out.arrays[2][3 * n + 1] + 1;
+      const std::vector<double> want = run<double>(serial, id, out), got = run<double>(*p64, id, out);
+      ASSERT_EQ(got.size(), want.size());
+      ASSERT_EQ(want.size(), static_cast<size_t>(5 * (2 * n + 1)));
+      EXPECT_EQ(want[3 * (2 * n + 1)], INFINITY);
+      for (size_t k = 0; k < want.size(); ++k)
+        if (std::isnan(want[k])) EXPECT_TRUE(std::isnan(got[k])) << k << ": " << got[k];
+        else if (std::isinf(want[k])) EXPECT_EQ(got[k], want[k]) << k;
+        else EXPECT_NEAR(got[k], want[k], 1e-12 * (1 + std::fabs(want[k]))) << k;
+    }
+  }
+  const Model ghost = Model::from_urdf_string(
+      "<?xml version=\"1.0\"?><robot name=\"ghost\"><link name=\"a\"/><link name=\"b\"/>"
+      "<joint name=\"j\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/><axis xyz=\"0 0 1\"/></joint>"
+      "</robot>");
+  rbd::Handle serial(ghost);
+  const auto hp = interpret_handle(ghost, "float64");
+  for (const char* name : {"com_cost", "momentum_cost"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    const Inputs in = make_inputs(ghost, *ops::op_table()[id].spec, 3, 2, false);
+    const std::string cpu = error_of([&] { run<double>(serial, id, in); });
+    EXPECT_EQ(cpu.rfind(std::string(name) + ": the robot has no mass (total mass 0 at sample 0)", 0), 0u) << cpu;
+    ASSERT_EQ(hp->cuda()->kernel_for(id, 3), "team");
+    const std::string msg = error_of([&] { run<double>(*hp, id, in); });
+    EXPECT_EQ(msg.rfind(cpu, 0), 0u) << msg;
+    EXPECT_NE(msg.find("[backend='cuda': 3 of 3 samples"), std::string::npos) << msg;
+  }
+}
+
 // a batch large enough that blocks hold several samples' work in shared memory on any device (on an
 // H100, 600 samples are 5 per block, as many as fit in interpret mode; scripts/gpu-check.sh runs this under compute-sanitizer's racecheck)
 TEST(Cuda, SharedBlocksOfManySamples) {

@@ -193,12 +193,14 @@ def test_device_arrays_are_checked(interpret):
 @pytest.mark.parametrize("robot", ["iiwa", "hyq_floating"])
 def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
     # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ID, M⁻¹, FD, ∇ID, ∇FD,
-    # the steps' gradients, the step's Hessian) or the sample-per-thread ones; each equals the CPU handle.
-    # A bad value is named
+    # the steps' gradients, the step's Hessian, the costs and barriers) or the sample-per-thread ones;
+    # each equals the CPU handle. A bad value is named
     name, _, floating = robot.partition("_")
     m = rbdkit.robots.load(name, floating_base=bool(floating))
     cpu = rbdkit.Handle(m)
     q, qd, tau = states(cpu, 5)
+    h_des, W = np.linspace(-1, 1, 30).reshape(5, 6), np.full((5, 6), 0.5)
+    lower, upper = q - 0.5, q + np.linspace(0.1, 1, q.size).reshape(q.shape)
     for kernel in ("team", "sample", "auto"):
         monkeypatch.setenv("RBDKIT_CUDA_KERNEL", kernel)
         h = rbdkit.Handle(m, backend="cuda")
@@ -209,7 +211,11 @@ def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
                          (h.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4"),
                           cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4")),
                          (h.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"),
-                          cpu.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"))):
+                          cpu.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4")),
+                         (h.momentum_cost(q, qd, h_des, W, output_convention="mujoco"),
+                          cpu.momentum_cost(q, qd, h_des, W, output_convention="mujoco")),
+                         (h.joint_position_barrier(q + 0.2, lower, upper, mu=0.1),
+                          cpu.joint_position_barrier(q + 0.2, lower, upper, mu=0.1))):
             for g, r in zip(got, ref):
                 np.testing.assert_allclose(g, r, rtol=1e-10, atol=1e-10, err_msg=kernel)
     monkeypatch.setenv("RBDKIT_CUDA_KERNEL", "warp")
@@ -273,6 +279,15 @@ def test_bench_gpu_script(tmp_path):
     # the Euler step Hessian of iiwa is 14 x 21 x 21 values (49 kB) a sample: skipped at every B
     hess = [r for r in rows if r[2].strip() == "euler ∇²step"]
     assert len(hess) == 14 and all("over --max-gb" in r[7] for r in hess)
+    # the costs and the barrier, named by --ops (their team kernels' rule is set from these rows)
+    cost_ops = "momentum_cost,quadratic_state_cost_tangent,joint_position_barrier"
+    r = subprocess.run([sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
+                        "--budget", "0.001", "--batches", "1,16", "--ops", cost_ops, "--kernels", "--out", str(out)],
+                       env=dict(os.environ, RBDKIT_CUDA_INTERPRET="1"), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in out.read_text().splitlines() if line.startswith("| iiwa |")]
+    assert sorted({r[2].strip() for r in rows}) == ["momentum cost", "q barrier", "state cost"]
+    assert len(rows) == 2 * 3 * 2 and all(float(r[5]) > 0 and float(r[6]) > 0 for r in rows)
     # --ops and --batches narrow the table; a bad batch size is named
     script = [sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
               "--budget", "0.001", "--ops", "minv", "--out", str(out)]

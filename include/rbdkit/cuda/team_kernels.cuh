@@ -34,6 +34,7 @@
 #include "rbdkit/algorithms/aba_derivatives.hpp"
 #include "rbdkit/model/team.hpp"
 #include "rbdkit/plant/integrator_hessian.hpp"
+#include "rbdkit/plant/costs.hpp"
 #include "rbdkit/plant/integrators.hpp"
 
 namespace rbd {
@@ -124,7 +125,8 @@ struct SerialTeam {
 // per_sm: up to how many samples per SM the engine's auto choice takes the team kernel on a small
 // model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team); wide_nv: from
 // this nv on, auto takes the team at every B (0: never), where one thread's chain is too long for a
-// sample per thread to catch up at any B
+// sample per thread to catch up at any B; mujoco_form: whether the team splits the work in MuJoCo's
+// output convention too (where it does not, auto keeps the sample kernel for such a call)
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
 };
@@ -135,6 +137,7 @@ template <> struct TeamOp<ops::InverseDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 0;  // (O(nb) work: floating Atlas's sample kernel led from B = 4096)
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 0; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -157,6 +160,7 @@ template <> struct TeamOp<ops::Minv> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -173,6 +177,7 @@ template <> struct TeamOp<ops::ForwardDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(nv) + 16;
   }
@@ -199,6 +204,7 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int nv) {
     return workspace_array_bytes<T>(2ul * nv * nv);
   }
@@ -222,6 +228,7 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv);
   }
@@ -243,6 +250,7 @@ template <typename Op> struct TeamStep {
   static constexpr bool available = true;
   static constexpr int per_sm = 32;  // (four ∇FD and their products per sample: more work to split)
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + 16;
   }
@@ -276,6 +284,7 @@ template <> struct TeamOp<ops::PlantStepHessian> {
   static constexpr bool available = true;
   static constexpr int per_sm = 32;  // (as the step's gradient: the stages' work is more to split)
   static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + workspace_array_bytes<T>(integrator_hessian_team_values(nv)) + 16;
   }
@@ -293,6 +302,77 @@ template <> struct TeamOp<ops::PlantStepHessian> {
                                                 a.real[4], x, x + m.nq, AB, a.out[2], a.scratch, t, team_tmp))
       return false;
     if (a.choice[6] == kReferenceForm) t.one([&] { step_hessian_reference_form(m, a.choice[5], AB, a.out[2]); });
+    return true;
+  }
+};
+
+// ---- the costs and barriers (plant/costs.hpp), in both conventions: the serial prefix (the log map,
+// kinematics, ccrba and dccrba) and the value's sum on one thread, the gradient and the Hessian an
+// entry per index. per_sm as ID's (no GPU measurement yet); wide_nv 16 where the Hessian is dense
+// (O(nv²) entries, which the team writes coalesced and one thread a sample writes alone), 0 for
+// the barriers' O(nv). extra: a flag (the failures of com_cost and momentum_cost)
+struct TeamCost {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = true;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
+  RBD_HD static int* flag(unsigned char* extra) { return reinterpret_cast<int*>(extra); }
+};
+template <> struct TeamOp<ops::QuadraticStateCost> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>&, const ops::OpArgs<T>& a) {
+    quadratic_cost(t, m.nq + m.nv, a.in[0], a.in[1], a.in[2], a.out[0], a.out[1], a.out[2]);
+    return true;
+  }
+};
+template <> struct TeamOp<ops::QuadraticInputCost> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>&, const ops::OpArgs<T>& a) {
+    quadratic_cost(t, m.nv, a.in[0], a.in[1], a.in[2], a.out[0], a.out[1], a.out[2]);
+    return true;
+  }
+};
+template <> struct TeamOp<ops::QuadraticStateCostTangent> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>&, const ops::OpArgs<T>& a) {
+    quadratic_state_cost_tangent(t, m, a.in[0], a.in[1], a.in[2], a.out[0], a.out[1], a.out[2], a.scratch,
+                                 a.choice[3]);
+    return true;
+  }
+};
+template <> struct TeamOp<ops::EePosCost> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    ee_pos_cost(t, m, w, a.in[0], a.in[1], a.in[2], a.choice[3], a.in[4], a.choice[5], a.out[0], a.out[1], a.out[2],
+                a.scratch);
+    return true;
+  }
+};
+template <> struct TeamOp<ops::ComCost> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    return com_cost(t, m, w, a.in[0], a.in[1], a.in[2], a.choice[3], a.out[0], a.out[1], a.out[2], a.scratch,
+                    flag(t.extra));
+  }
+};
+template <> struct TeamOp<ops::MomentumCost> : TeamCost {
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    return momentum_cost(t, m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.choice[4], a.out[0], a.out[1], a.out[2],
+                         a.scratch, flag(t.extra));
+  }
+};
+// extra: each coordinate's term of the value (n <= nq <= nv + nb)
+template <int Which> struct TeamOp<ops::JointBarrier<Which>> : TeamCost {
+  static constexpr int wide_nv = 0;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return workspace_array_bytes<T>(nv + nb);
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>&, const ops::OpArgs<T>& a) {
+    log_barrier(t, Which == 0 ? m.nq : m.nv, a.in[0], a.in[1], a.in[2], a.real[3], a.out[0], a.out[1], a.out[2],
+                reinterpret_cast<T*>(t.extra));
     return true;
   }
 };
@@ -373,13 +453,19 @@ template <typename Op> constexpr int team_wide_nv() {
   if constexpr (TeamOp<Op>::available) return TeamOp<Op>::wide_nv;
   else return 0;
 }
+template <typename Op> constexpr bool team_mujoco_form() {
+  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::mujoco_form;
+  else return false;
+}
 
-// per registered operation (ops::AllOps' order): its team's extra bytes, per_sm (0: no team kernel)
-// and wide_nv
+// per registered operation (ops::AllOps' order): its team's extra bytes, per_sm (0: no team kernel),
+// wide_nv and mujoco_form
 template <typename T, typename... Op>
-void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm, int* wide_nv) {
+void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm, int* wide_nv,
+                 int* mujoco_form) {
   int k = 0;
-  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), wide_nv[k] = team_wide_nv<Op>(), ++k),
+  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), wide_nv[k] = team_wide_nv<Op>(),
+    mujoco_form[k] = team_mujoco_form<Op>(), ++k),
    ...);
 }
 
