@@ -17,8 +17,8 @@ With --ops, also a state cost (tangent), the momentum cost and the position
 barrier (not timed by default).
 
 With --kernels: two more resident columns, the operations that have a team
-kernel (ID, M⁻¹, FD, ∇ID, ∇FD, the step gradient and Hessian, the costs and
-barriers: a block of threads per sample) forced to the sample-per-thread kernel and to the team kernel
+kernel (ID, M, M⁻¹, FD, ∇ID, ∇FD, the step gradient and Hessian, the costs
+and barriers: a block of threads per sample) forced to the sample-per-thread kernel and to the team kernel
 (RBDKIT_CUDA_KERNEL; the default, "auto", picks by B per SM and by nv;
 docs/cuda.md, "Team kernels"); "-" for the others.
 
@@ -61,7 +61,7 @@ BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
 COST_OPS = (("state cost", "quadratic_state_cost_tangent"), ("momentum cost", "momentum_cost"),
             ("q barrier", "joint_position_barrier"))
 # the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
-TEAM_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
+TEAM_OPS = ("inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
             "integrator_gradient", "plant_step_hessian") + tuple(o[1] for o in COST_OPS)
 # the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops)
 INSTANCE_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",

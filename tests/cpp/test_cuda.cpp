@@ -224,7 +224,7 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
-// the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
+// the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
 // step's gradient with and without ∂x⁺/∂f_ext, the step's Hessian; a block of threads per sample) against
 // the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in shared
 // and in global memory, every output or some, f_ext, every integrator scheme in both conventions
@@ -236,7 +236,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
     SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
     rbd::Handle serial(m);
     const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
-    for (const char* name : {"inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
+    for (const char* name : {"inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient",
                              "forward_dynamics_gradient", "integrator_gradient", "integrator_f_ext_gradient",
                              "plant_step_hessian"}) {
       SCOPED_TRACE(name);
@@ -244,6 +244,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       const ops::OpSpec& op = *ops::op_table()[id].spec;
       const bool hessian = std::string(name) == "plant_step_hessian";
       const bool step = std::string(op.family) == "integrators" || hessian, minv = std::string(name) == "minv";
+      const bool q_only = minv || std::string(name) == "crba";  // (M and M⁻¹ take q alone)
       // auto: the team on a small batch (at most 8 per SM, 32 for a step: 32 or 128 samples on the
       // interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps the sample kernel
       // whatever is asked
@@ -301,9 +302,9 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       if (on_device()) continue;
       // a device array's bad value: the team's check names it, as the host's does
       Inputs bad = in;
-      bad.arrays[minv ? 0 : 1][(hessian ? 2 : 3) * (minv ? m.nq : m.nv)] = NAN;  // (M⁻¹ takes q alone)
+      bad.arrays[q_only ? 0 : 1][(hessian ? 2 : 3) * (q_only ? m.nq : m.nv)] = NAN;
       const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
-      EXPECT_NE(msg.find(minv ? "q[3]" : hessian ? "u[2]" : "qd[3]"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(q_only ? "q[3]" : hessian ? "u[2]" : "qd[3]"), std::string::npos) << msg;
     }
   }
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);

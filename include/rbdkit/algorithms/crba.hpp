@@ -144,7 +144,33 @@ RBD_HD void crba_store_ancestor(const ModelView<S>& m, Workspace<S>& w, int j, c
   }
 }
 
-// backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors,
+// column c = v_i + k of M in world coordinates: F = Ic_i s_k with Ic_i body i's composite, M's entries
+// of c against i's own DoFs l <= k and against every ancestor's DoFs, both triangles (add:
+// accumulated, for mimic models). Without mimic joints a column writes only entries no other
+// column writes (each (ancestor, descendant) pair of DoFs belongs to the descendant's column)
+template <typename S>
+RBD_HD void crba_world_column(const ModelView<S>& m, Workspace<S>& w, int i, int k, bool add, S* M) {
+  const int nv = m.nv;
+  const BodyDesc<S>& bi = m.body[i];
+  const Motion<S>* si = w.S_world + 6 * i;
+  const Force<S> F = w.Ic[i] * si[k];  // (one DoF, the common case: F stays in registers)
+  const int c = bi.v_idx + k;
+  // diagonal block: the joint's own DoFs l <= k (both triangles)
+  for (int l = 0; l <= k; ++l) {
+    const S x = dot(si[l], F);
+    S& upper = M[(bi.v_idx + l) * nv + c];
+    S& lower = M[c * nv + bi.v_idx + l];
+    if (add) {
+      upper += x;
+      if (l != k) lower += x;
+    } else {
+      upper = x, lower = x;
+    }
+  }
+  for (int j = bi.parent; j >= 0; j = m.body[j].parent) crba_store_ancestor(m, w, j, F, c, add, M);
+}
+
+// backward pass: F = Ic_i s_i, M_ji = s_jᵀ F for j = i and its ancestors (crba_world_column),
 // Ic_λ += Ic_i. writes M (nv x nv, row-major), w.Ic (subtree sums).
 // Without mimic joints each (ancestor, descendant) pair of DoFs is met once,
 // so both triangles are assigned; a mimic body adds into its target's columns.
@@ -154,28 +180,9 @@ template <typename S> RBD_HD void crba_backward_pass(const ModelView<S>& m, Work
   for (int k = 0; k < nv * nv; ++k) M[k] = S(0);
   RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
-    const BodyDesc<S>& bi = m.body[i];
-    const Motion<S>* si = w.S_world + 6 * i;
-    // one column F = Ic s per DoF of the joint, walked up the ancestors (one
-    // DoF, the common case: F stays in registers)
-    for (int k = 0; k < bi.nv; ++k) {
-      const Force<S> F = w.Ic[i] * si[k];
-      const int c = bi.v_idx + k;
-      // diagonal block: the joint's own DoFs l <= k (both triangles)
-      for (int l = 0; l <= k; ++l) {
-        const S x = dot(si[l], F);
-        S& upper = M[(bi.v_idx + l) * nv + c];
-        S& lower = M[c * nv + bi.v_idx + l];
-        if (add) {
-          upper += x;
-          if (l != k) lower += x;
-        } else {
-          upper = x, lower = x;
-        }
-      }
-      for (int j = bi.parent; j >= 0; j = m.body[j].parent) crba_store_ancestor(m, w, j, F, c, add, M);
-    }
-    if (bi.parent >= 0) w.Ic[bi.parent] += w.Ic[i];
+    // one column per DoF of the joint, walked up the ancestors
+    for (int k = 0; k < m.body[i].nv; ++k) crba_world_column(m, w, i, k, add, M);
+    if (m.body[i].parent >= 0) w.Ic[m.body[i].parent] += w.Ic[i];
   }
 }
 
@@ -195,6 +202,33 @@ template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, c
     w.Ic[i] = m.body[i].I;
   }
   crba_body_backward_pass(m, w, M);
+}
+
+// crba on a team of threads (model/team.hpp), for a model without mimic joints: crba_world's passes
+// in the root's reference frame (world.hpp, as minv_team's). M zeroed (each); the placements,
+// subspace columns and body inertias side by side (world_placements_team); the composites
+// Ic_λ += Ic_i, children first, on one thread (the only chain); then every column side by side
+// (crba_world_column: a column writes only its own entries). An InlineTeam runs crba (body
+// coordinates: the same M to rounding)
+template <typename S, typename Team>
+RBD_HD void crba_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
+  if constexpr (!Team::cooperative) {
+    crba(m, w, q, M);
+  } else {
+    t.each(static_cast<long>(m.nv) * m.nv, [&](long k) { M[k] = S(0); });
+    world_placements_team(
+        t, m, w, q, true, [&](int i) { w.Ic[i] = reference_inertia(m, w, i, false); }, false);
+    t.one([&] {
+      RBD_UNROLL
+      for (int i = m.nb - 1; i >= 0; --i)
+        if (m.body[i].parent >= 0) w.Ic[m.body[i].parent] += w.Ic[i];
+    });
+    t.each(m.nv, [&](long c) {
+      int i = 0;  // the body whose joint has DoF c
+      while (i + 1 < m.nb && c >= m.body[i].v_idx + m.body[i].nv) ++i;
+      crba_world_column(m, w, i, static_cast<int>(c) - m.body[i].v_idx, false, M);
+    });
+  }
 }
 
 }  // namespace rbd

@@ -32,6 +32,7 @@
 
 #include "rbdkit/cuda/kernels.cuh"
 #include "rbdkit/algorithms/aba_derivatives.hpp"
+#include "rbdkit/algorithms/crba.hpp"
 #include "rbdkit/model/team.hpp"
 #include "rbdkit/plant/integrator_hessian.hpp"
 #include "rbdkit/plant/costs.hpp"
@@ -151,6 +152,22 @@ template <> struct TeamOp<ops::InverseDynamics> {
       t.one([&] { remove_gravity(m, w, a.real[3], w.c); });  // (w.c is free after RNEA)
       t.each(m.nb, [&](long i) { store(w.c[i], a.out[2] + 6 * i); });
     }
+    return true;
+  }
+};
+
+// M: crba_team (crba.hpp), in world coordinates: the placements and body inertias an entry per index,
+// the composites on one thread, then a column per index. per_sm and wide_nv as M⁻¹'s (no GPU
+// measurement yet: CRBA's columns are lighter than M⁻¹'s, each walking its ancestors only)
+template <> struct TeamOp<ops::Crba> {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;
+  static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 0; }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    crba_team(t, m, w, a.in[0], a.out[0]);
     return true;
   }
 };
