@@ -376,7 +376,10 @@ std::string cuda_instance_mismatch(const CudaInstance& instance, const Model& mo
          std::to_string(model.nb()) + ", " + std::to_string(model.nq) + ", " + std::to_string(model.nv) + ", " +
          std::to_string(general) + ")";
 }
-void cuda_instance_activate(const CudaInstance& instance, int device) { instance.description->activate(device); }
+void cuda_instance_activate(const CudaInstance& instance, int device) {
+  char error[512];
+  if (instance.description->activate(device, error, sizeof error)) throw std::runtime_error(error);
+}
 const std::string& instance_path(const CudaInstance& instance) { return instance.path; }
 
 ops::Kernel<double> instance_kernel(const Instance& instance, int op) {

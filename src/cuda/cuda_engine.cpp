@@ -290,8 +290,9 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   dc.failed = failed_device;
   dc.call_id = call_id = call_id == 0x7fffffff ? 1 : call_id + 1;  // (never 0, the flag's first value)
   // the robot's instance launches the operations it compiled (use_instance), the device the rest
-  const cuda::Launcher<T> own =
-      instance ? reinterpret_cast<cuda::Launcher<T>>(cuda_instance_launch(*instance, op_id, sizeof(T) == 4)) : nullptr;
+  const cuda::GuardedLauncher<T> own =
+      instance ? reinterpret_cast<cuda::GuardedLauncher<T>>(cuda_instance_launch(*instance, op_id, sizeof(T) == 4))
+               : nullptr;
   for (long s0 = 0; s0 < B; s0 += chunk) {
     cuda::DeviceCall<T> part = dc;
     part.B = std::min(chunk, B - s0);
@@ -301,8 +302,12 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
       if (part.out[o]) part.out[o] += s0 * out_values[o];
     part.status = status_d + s0;
     const cuda::LaunchShape shape = part.B == B ? whole : shape_of(part.B, cuda::kWorkGlobal);  // (a chunk: global)
-    if (own) own(part, shape, stream);
-    else dev->launch(op_id, part, shape, stream);
+    if (own) {
+      char error[512];
+      if (own(part, shape, stream, error, sizeof error)) throw std::runtime_error(error);
+    } else {
+      dev->launch(op_id, part, shape, stream);
+    }
   }
   // the outputs of host arrays; the statuses only when the flag (written in place) says
   for (int o = 0; o < op.n_out; ++o)

@@ -296,3 +296,18 @@ TEST(Specialize, FallsBackWithAReason) {
   Handle ref(m);
   EXPECT_EQ(rbd_test::run<double>(g, id, in), rbd_test::run<double>(ref, id, in));
 }
+
+// a CUDA instance's entry points (launches, device selection) turn an exception into text, which the
+// engine throws on its side: no C++ exception crosses the boundary of a library loaded with dlopen. The
+// message cut to the buffer, NUL-terminated; an exception of another type named as such
+TEST(Specialize, InstanceEntryPointsReportErrorsAsText) {
+  namespace ci = rbd::cuda::instance;
+  char small[16];
+  EXPECT_EQ(ci::guarded([] {}, small, sizeof small), 0);
+  EXPECT_EQ(ci::guarded([] { throw std::runtime_error("kernel launch: out of memory"); }, small, sizeof small), 1);
+  EXPECT_STREQ(small, "kernel launch: ");  // (15 characters and the NUL)
+  char big[200];
+  EXPECT_EQ(ci::guarded([] { throw 7; }, big, sizeof big), 1);
+  EXPECT_NE(std::string(big).find("an exception that is not a std::exception"), std::string::npos) << big;
+  EXPECT_EQ(ci::activate(0, big, sizeof big), 0);  // (an interpret instance has no device to select)
+}

@@ -71,7 +71,7 @@ std::shared_ptr<const CudaInstance> load_cuda_instance(const Model& model, const
 std::string cuda_instance_mismatch(const CudaInstance& instance, const Model& model);
 // the C++ source of model's CUDA instance
 std::string cuda_instance_source(const Model& model);
-// the instance's launch of registered operation `op` for one dtype (a cuda::Launcher<double> or
+// the instance's launch of registered operation `op` for one dtype (a cuda::GuardedLauncher<double> or
 // <float>, rbdkit/cuda/kernels.cuh), null where it has none; whether it holds GPU kernels (else
 // interpret launches); the device selection in its own CUDA runtime (throws std::runtime_error)
 const void* cuda_instance_launch(const CudaInstance& instance, int op, bool f32);

@@ -13,7 +13,16 @@
 // arguments (DeviceCall), the same outputs and statuses, with the sizes,
 // parents, joint types and placements known to the compiler. The engine runs
 // the instance's launch for these operations and its own for the rest.
+// The entry points report errors as text (guarded): the instance may have been
+// built by another compiler's runtime, which could not catch the library's
+// exceptions, nor the library its.
 #pragma once
+
+#include <algorithm>
+#include <cstring>
+#include <exception>
+#include <stdexcept>
+#include <string>
 
 #include "rbdkit/codegen/instance.hpp"
 #include "rbdkit/codegen/robot_model.hpp"
@@ -28,7 +37,7 @@ namespace cuda {
 namespace instance {
 
 // changes whenever the entry point's types or meaning change (a key of the cache, checked on load)
-constexpr int kAbi = 1;
+constexpr int kAbi = 2;
 
 // the operations an instance compiles: the dynamics, the mass matrix and its inverse, their first
 // derivatives and the step with its gradient (every one with a team kernel among them)
@@ -54,23 +63,45 @@ template <class... Op> constexpr unsigned long long fingerprint(ops::OpList<Op..
 }
 constexpr unsigned long long kLayout = fingerprint(static_cast<Ops*>(nullptr));
 
+// f() with its exception turned into text: 0, or 1 with the message in error[0, size) (cut to fit,
+// NUL-terminated). The instance's entry points run through it (see above)
+template <typename F> int guarded(F&& f, char* error, int size) noexcept {
+  const char* what = nullptr;
+  try {
+    f();
+    return 0;
+  } catch (const std::exception& e) {
+    what = e.what();
+  } catch (...) {
+    what = "backend='cuda' (the robot's instance): an exception that is not a std::exception";
+  }
+  if (size > 0) {
+    const size_t n = std::min(std::strlen(what), static_cast<size_t>(size - 1));
+    std::memcpy(error, what, n);
+    error[n] = '\0';
+  }
+  return 1;
+}
+
 // what rbdkit_cuda_instance() returns (abi first: the loader reads it before the rest)
 struct Description {
   int abi;                    // kAbi
   unsigned long long layout;  // kLayout
   int nb, nq, nv, has_mimic;  // the robot's (has_mimic: ModelView's, the general paths)
   int device;                 // 1: real kernels (nvcc); 0: interpret launches (the host compiler)
-  void (*activate)(int);      // makes CUDA device k the current one of the instance's runtime (before a launch)
+  // makes CUDA device k the current one of the instance's runtime (before a launch); 0, or 1 and
+  // the error in error[0, size) (guarded)
+  int (*activate)(int device, char* error, int size);
   int n_ops;
-  const char* const* names;   // (n_ops) registered operations' names
-  const Launcher<double>* f64;  // (n_ops) their launches, per dtype
-  const Launcher<float>* f32;
+  const char* const* names;           // (n_ops) registered operations' names
+  const GuardedLauncher<double>* f64;  // (n_ops) their launches, per dtype (guarded)
+  const GuardedLauncher<float>* f32;
 };
 
 #if defined(__CUDACC__)
 // the instance links a CUDA runtime of its own: a launch's error is its runtime's to report, and the
 // engine's current device is set in it too
-inline void activate(int device) {
+inline void select_device(int device) {
   const cudaError_t e = cudaSetDevice(device);
   if (e != cudaSuccess)
     throw std::runtime_error(std::string("backend='cuda' (the robot's instance): selecting device ") +
@@ -83,16 +114,23 @@ template <class R, typename Op, typename T> void launch(const DeviceCall<T>& c, 
     throw std::runtime_error(std::string("backend='cuda' (the robot's instance): kernel launch: ") +
                              cudaGetErrorString(e));
 }
-template <class R, typename T, class... Op> const Launcher<T>* table(ops::OpList<Op...>) {
-  static const Launcher<T> t[] = {&launch<R, Op, T>...};
-  return t;
-}
 #else
-inline void activate(int) {}
-template <class R, typename T, class... Op> const Launcher<T>* table(ops::OpList<Op...> list) {
-  return interpret_table<T, rbd::instance::RobotModel<R>>(list);
+inline void select_device(int) {}
+template <class R, typename Op, typename T> void launch(const DeviceCall<T>& c, LaunchShape shape, void* stream) {
+  interpret_launch<Op, T, rbd::instance::RobotModel<R>>(c, shape, stream);
 }
 #endif
+inline int activate(int device, char* error, int size) {
+  return guarded([&] { select_device(device); }, error, size);
+}
+template <class R, typename Op, typename T>
+int guarded_launch(const DeviceCall<T>& c, LaunchShape shape, void* stream, char* error, int size) {
+  return guarded([&] { launch<R, Op, T>(c, shape, stream); }, error, size);
+}
+template <class R, typename T, class... Op> const GuardedLauncher<T>* table(ops::OpList<Op...>) {
+  static const GuardedLauncher<T> t[] = {&guarded_launch<R, Op, T>...};
+  return t;
+}
 
 }  // namespace instance
 }  // namespace cuda

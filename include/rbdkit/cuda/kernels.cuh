@@ -238,6 +238,11 @@ void interpret_op(const DeviceCall<T>& c, LaunchShape shape) {
 }
 
 template <typename T> using Launcher = void (*)(const DeviceCall<T>&, LaunchShape shape, void* stream);
+// a launch that reports its error as text rather than throwing it: 0, or 1 with the message in
+// error[0, size), NUL-terminated. A per-robot instance's entry points are these (cuda/instance.cuh):
+// no C++ exception crosses the boundary of a library loaded with dlopen
+template <typename T>
+using GuardedLauncher = int (*)(const DeviceCall<T>&, LaunchShape shape, void* stream, char* error, int size);
 
 }  // namespace cuda
 }  // namespace rbd
