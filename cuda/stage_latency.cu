@@ -105,13 +105,13 @@ __global__ void team_stages(ModelView<S> call_model, const S* q, const S* qd, co
   unsigned char* slice = Known || ws_in_shared ? shared_ws : global_ws;
   Workspace<S> w = carve_workspace<S>(slice, m.nb, m.nv);
   cuda::BlockTeam t;
-  t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: RNEA's linear workspace, ∂ID, u - c, qdd, flag
+  t.extra = slice + ws_bytes;  // aba_derivatives_team_bytes: FD's (RNEA's linear workspace, u - c, a flag), ∂ID, qdd
   const int nv = m.nv, n2 = nv * nv;
   Workspace<S> wa = carve_workspace<S>(t.extra, m.nb, nv, kLinearWorkspace);
-  S* dq = reinterpret_cast<S*>(t.extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));
+  S* dq = reinterpret_cast<S*>(t.extra + forward_dynamics_team_bytes<S>(m.nb, nv));
   S* dv = dq + n2;
-  S* qdd = dv + n2 + nv;  // (after aba_derivatives_team's tau - c)
-  int* ok = reinterpret_cast<int*>(t.extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
+  S* qdd = dv + n2;
+  int* ok = reinterpret_cast<int*>(t.extra + forward_dynamics_team_bytes<S>(m.nb, nv) - 16);  // (FD's flag and the next)
   S* out = sink;
   S* D1 = sink + nv;
   S* D2 = sink + nv + n2;

@@ -146,8 +146,8 @@ TEST(Cuda, FailedSamplesAreNamed) {
 }
 
 // a team kernel's failure (a joint that moves no mass: D = 0 in M⁻¹'s articulated inertias, read by M⁻¹,
-// FD, ∇FD and the step's gradient) names the joint and the samples as the CPU does, and as the sample
-// kernel does
+// FD, ∇FD, the step, its gradient and its Hessian) names the joint and the samples as the CPU does, and as
+// the sample kernel does
 TEST(Cuda, TeamFailuresAreNamed) {
   const Model m = Model::from_urdf_string(R"(<robot name="r"><link name="base"/>
     <link name="a"><inertial><mass value="1"/><origin xyz="0 0 0.1"/>
@@ -160,7 +160,8 @@ TEST(Cuda, TeamFailuresAreNamed) {
   rbd::Handle serial(m);
   const auto hp = interpret_handle(m, "float64");
   for (const char* name :
-       {"minv", "forward_dynamics", "forward_dynamics_gradient", "integrator_gradient", "plant_step_hessian"}) {
+       {"minv", "forward_dynamics", "forward_dynamics_gradient", "integrator", "plant_step", "integrator_gradient",
+        "plant_step_gradient", "plant_step_hessian"}) {
     SCOPED_TRACE(name);
     const int id = ops::find_op(name);
     const Inputs in = make_inputs(m, *ops::op_table()[id].spec, 3, 4, false);
@@ -224,8 +225,9 @@ TEST(Cuda, WorkMemoriesAgree) {
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_work_memory("texture"), std::invalid_argument);
 }
 
-// the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the integrator
-// step's gradient with and without ∂x⁺/∂f_ext, the step's Hessian; a block of threads per sample) against
+// the team kernels (include/rbdkit/cuda/team_kernels.cuh: ID, M, M⁻¹ (dense and upper), FD, ∇ID, ∇FD, the
+// step's value, its gradient with and without ∂x⁺/∂f_ext (integrator and plant layouts), the step's Hessian;
+// a block of threads per sample) against
 // the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in shared
 // and in global memory, every output or some, f_ext, every integrator scheme in both conventions
 // (MuJoCo's, asked for, on one thread of the team), the Hessian in both of its forms;
@@ -237,23 +239,26 @@ TEST(Cuda, TeamKernelsEqualCpu) {
     rbd::Handle serial(m);
     const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
     for (const char* name : {"inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient",
-                             "forward_dynamics_gradient", "integrator_gradient", "integrator_f_ext_gradient",
-                             "plant_step_hessian"}) {
+                             "forward_dynamics_gradient", "integrator", "plant_step", "integrator_gradient",
+                             "integrator_f_ext_gradient", "plant_step_gradient", "plant_step_hessian"}) {
       SCOPED_TRACE(name);
       const int id = ops::find_op(name);
       const ops::OpSpec& op = *ops::op_table()[id].spec;
       const bool hessian = std::string(name) == "plant_step_hessian";
       const bool step = std::string(op.family) == "integrators" || hessian, minv = std::string(name) == "minv";
       const bool q_only = minv || std::string(name) == "crba";  // (M and M⁻¹ take q alone)
-      // auto: the team on a small batch (at most 8 per SM, 32 for a step: 32 or 128 samples on the
-      // interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps the sample kernel
-      // whatever is asked
+      const bool plant = std::string(op.args[0].name) == "x";   // (x = [q; qd], then u)
+      const int o = plant ? 0 : 1;  // a step's arguments after x, or after q and qd
+      const bool step_value = step && op.n_out == 1;  // (the step's value: FD's rule, 8 per SM)
+      // auto: the team on a small batch (at most 8 per SM, 32 for a step's derivatives: 32 or 128
+      // samples on the interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps
+      // the sample kernel whatever is asked
       EXPECT_EQ(p64->cuda()->kernel(), "auto");
       EXPECT_EQ(p64->cuda()->kernel_for(id, 5), m.has_mimic() ? "sample" : "team");
       const bool wide = m.nv >= 16 && std::string(name) != "inverse_dynamics";  // (ID: O(nb), never wide)
       EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() || !wide ? "sample" : "team");
       if (!on_device()) {  // the per-SM bound, at the interpret device's 4 SMs
-        const long bound = 4 * (step ? 32 : 8);
+        const long bound = 4 * (step && !step_value ? 32 : 8);
         EXPECT_EQ(p64->cuda()->kernel_for(id, bound), m.has_mimic() ? "sample" : "team");
         EXPECT_EQ(p64->cuda()->kernel_for(id, bound + 1), m.has_mimic() || !wide ? "sample" : "team");
       }
@@ -279,7 +284,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
         if (hessian) {  // the Hessian: integrator_type, output_convention, form (the reference one for H alone)
           in.call.choice[3] = variant % 6, in.call.choice[5] = variant / 6, in.call.choice[6] = mask == 1u << 2;
         } else if (step) {
-          in.call.choice[4] = variant % 6, in.call.choice[7] = variant / 6;
+          in.call.choice[3 + o] = variant % 6, in.call.choice[6 + o] = variant / 6;
         }
         if (minv) in.call.choice[1] = 1 - variant;  // output_dense: True, then False
         // MuJoCo's convention: the team asked for, which runs the step on one of its threads
@@ -304,7 +309,7 @@ TEST(Cuda, TeamKernelsEqualCpu) {
       Inputs bad = in;
       bad.arrays[q_only ? 0 : 1][(hessian ? 2 : 3) * (q_only ? m.nq : m.nv)] = NAN;
       const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
-      EXPECT_NE(msg.find(q_only ? "q[3]" : hessian ? "u[2]" : "qd[3]"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(q_only ? "q[3]" : hessian ? "u[2]" : plant ? "u[3]" : "qd[3]"), std::string::npos) << msg;
     }
   }
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);

@@ -193,7 +193,7 @@ def test_device_arrays_are_checked(interpret):
 @pytest.mark.parametrize("robot", ["iiwa", "hyq_floating"])
 def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
     # RBDKIT_CUDA_KERNEL forces the team kernels (a block of threads per sample: ID, M⁻¹, FD, ∇ID, ∇FD,
-    # the steps' gradients, the step's Hessian, the costs and barriers) or the sample-per-thread ones;
+    # the steps and their gradients, the step's Hessian, the costs and barriers) or the sample-per-thread ones;
     # each equals the CPU handle. A bad value is named
     name, _, floating = robot.partition("_")
     m = rbdkit.robots.load(name, floating_base=bool(floating))
@@ -212,6 +212,10 @@ def test_kernel_choice_from_the_environment(interpret, monkeypatch, robot):
                           cpu.integrator_gradient(q, qd, tau, dt=0.01, integrator_type="rk4")),
                          (h.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"),
                           cpu.plant_step_hessian(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4")),
+                         ((h.plant_step(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"),
+                           h.plant_step_gradient(np.hstack([q, qd]), tau, dt=0.01, integrator_type="trapezoidal")),
+                          (cpu.plant_step(np.hstack([q, qd]), tau, dt=0.01, integrator_type="rk4"),
+                           cpu.plant_step_gradient(np.hstack([q, qd]), tau, dt=0.01, integrator_type="trapezoidal"))),
                          (h.momentum_cost(q, qd, h_des, W, output_convention="mujoco"),
                           cpu.momentum_cost(q, qd, h_des, W, output_convention="mujoco")),
                          (h.joint_position_barrier(q + 0.2, lower, upper, mu=0.1),

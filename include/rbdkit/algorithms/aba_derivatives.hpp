@@ -126,29 +126,21 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
 // gives x⁺ to the last bits of the step's. On an H200, ABA on one thread took 26 µs of iiwa's 40 beside
 // M⁻¹'s 17; M⁻¹ beside RNEA, then qdd's rows, take 19 (cuda/stage_latency.cu's team table, docs/gpu.md).
 // M⁻¹ is left in w.dense as in aba_derivatives.
-// extra: aba_derivatives_team_bytes(nb, nv) bytes; qdd may be null (extra holds it)
+// extra: aba_derivatives_team_bytes(nb, nv) bytes (forward_dynamics_team's, then ∂ID and qdd); qdd may
+// be null (extra holds it)
 template <typename S> RBD_HD unsigned long aba_derivatives_team_bytes(int nb, int nv) {
-  return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(2ul * nv * nv + 2ul * nv) + 16;
+  return forward_dynamics_team_bytes<S>(nb, nv) + workspace_array_bytes<S>(2ul * nv * nv + nv);
 }
 template <typename S, typename Team>
 RBD_HD bool aba_derivatives_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, unsigned char* extra,
                                  const S* q, const S* qd, const S* tau, const S* fext, S gravity, S* qdd,
                                  S* dqdd_dq, S* dqdd_dqd) {
   const int nv = m.nv, n2 = nv * nv;
-  Workspace<S> wr = carve_workspace<S>(extra, m.nb, nv, kLinearWorkspace);
-  S* dq = reinterpret_cast<S*>(extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));  // ∂ID/∂q
-  S* dv = dq + n2;                                                                         // ∂ID/∂qd
-  S* r = dv + n2;                                                                          // tau - c
-  if (!qdd) qdd = r + nv;
-  int* ok = reinterpret_cast<int*>(extra + aba_derivatives_team_bytes<S>(m.nb, nv) - 16);
+  S* dq = reinterpret_cast<S*>(extra + forward_dynamics_team_bytes<S>(m.nb, nv));  // ∂ID/∂q
+  S* dv = dq + n2;                                                                  // ∂ID/∂qd
+  if (!qdd) qdd = dv + n2;
   const S* Minv = w.dense;
-  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok); },
-           [&] {
-             rnea(m, wr, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
-             for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
-           });
-  if (!*ok) return false;  // (read after the barrier: the same on every thread)
-  matvec(t, Minv, r, qdd, nv, nv);
+  if (!forward_dynamics_team(t, m, w, extra, q, qd, tau, fext, gravity, qdd)) return false;
   rnea_derivatives_team(t, m, w, q, qd, qdd, fext, gravity, dq, dv, true);  // on M⁻¹'s placements
   const S* D[2] = {dq, dv};
   S* out[2] = {dqdd_dq, dqdd_dqd};

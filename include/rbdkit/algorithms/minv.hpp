@@ -452,4 +452,29 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
   return true;
 }
 
+// forward_dynamics on a team of threads (model/team.hpp), for a model without mimic joints: M⁻¹ on
+// the first warp (minv_team, into w.dense: w the full workspace) beside the bias c = RNEA(q, qd, 0,
+// f_ext) on one thread, in a linear workspace of its own; then qdd = M⁻¹ (tau - c), a row per index.
+// The same values as forward_dynamics. extra: forward_dynamics_team_bytes(nb, nv) bytes (RNEA's
+// workspace, tau - c, a flag); false, on every thread, where a D is not positive definite
+template <typename S> RBD_HD unsigned long forward_dynamics_team_bytes(int nb, int nv) {
+  return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(nv) + 16;
+}
+template <typename S, typename Team>
+RBD_HD bool forward_dynamics_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, unsigned char* extra,
+                                  const S* q, const S* qd, const S* tau, const S* fext, S gravity, S* qdd) {
+  const int nv = m.nv;
+  Workspace<S> wr = carve_workspace<S>(extra, m.nb, nv, kLinearWorkspace);
+  S* r = reinterpret_cast<S*>(extra + workspace_bytes<S>(m.nb, nv, kLinearWorkspace));  // tau - c
+  int* ok = reinterpret_cast<int*>(extra + forward_dynamics_team_bytes<S>(m.nb, nv) - 16);
+  t.beside([&](const auto& sub) { minv_team(sub, m, w, q, true, w.dense, ok); },
+           [&] {
+             rnea(m, wr, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
+             for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
+           });
+  if (!*ok) return false;  // (read after the barrier: the same on every thread)
+  matvec(t, w.dense, r, qdd, nv, nv);
+  return true;
+}
+
 }  // namespace rbd

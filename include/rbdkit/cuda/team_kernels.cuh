@@ -187,32 +187,20 @@ template <> struct TeamOp<ops::Minv> {
   }
 };
 
-// FD through M⁻¹, qdd = M⁻¹ (u - c): the bias c by RNEA on one thread, in a linear workspace of its own
-// (in extra), beside minv_team on the first warp; then each row of the product. The same values as
-// forward_dynamics (minv.hpp). extra: RNEA's workspace, u - c (nv), the flag
+// FD through M⁻¹, qdd = M⁻¹ (u - c): forward_dynamics_team (minv.hpp), the bias c by RNEA on one
+// thread beside minv_team on the first warp, then each row of the product. The same values as
+// forward_dynamics (minv.hpp). extra: forward_dynamics_team_bytes (RNEA's workspace, u - c, the flag)
 template <> struct TeamOp<ops::ForwardDynamics> {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;
   static constexpr int wide_nv = 16;
   static constexpr bool mujoco_form = false;
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
-    return workspace_bytes<T>(nb, nv, kLinearWorkspace) + workspace_array_bytes<T>(nv) + 16;
+    return forward_dynamics_team_bytes<T>(nb, nv);
   }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
-    const int nv = m.nv;
-    Workspace<T> wr = carve_workspace<T>(t.extra, m.nb, nv, kLinearWorkspace);
-    T* r = reinterpret_cast<T*>(t.extra + workspace_bytes<T>(m.nb, nv, kLinearWorkspace));
-    int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, nv) - 16);
-    const T* Mi = w.dense;
-    t.beside([&](const auto& sub) { minv_team(sub, m, w, a.in[0], true, w.dense, ok); },
-             [&] {
-               rnea(m, wr, a.in[0], a.in[1], static_cast<const T*>(nullptr), a.in[3], a.real[4], r);
-               for (int k = 0; k < nv; ++k) r[k] = a.in[2][k] - r[k];
-             });
-    if (!*ok) return false;
-    matvec(t, Mi, r, a.out[0], nv, nv);
-    return true;
+    return forward_dynamics_team(t, m, w, t.extra, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], a.out[0]);
   }
 };
 
@@ -259,7 +247,46 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
   }
 };
 
-// the integrator step and its gradient (integrators.hpp), every scheme, with or without ∂x⁺/∂f_ext:
+// the step's arguments: the integrator ops take (q, qd, u, dt, type, f_ext, gravity, convention), the
+// plant ones (x, u, dt, type, f_ext, gravity, convention): the offset of every argument after qd
+template <typename Op> RBD_HD constexpr int step_arg_offset() { return Op::spec.n_args == 8 ? 1 : 0; }
+
+// the integrator step's value (integrator, plant_step; integrators.hpp), every scheme:
+// integrator_step_with on the team, each stage's acceleration by forward_dynamics_team (FD through
+// M⁻¹: the serial step's ABA to rounding), the stage updates and retractions on one thread. The
+// op's workspace is linear; M⁻¹ needs the full one, which the team carves from its extra. MuJoCo's
+// convention has no team form: where the team is asked for, the registry's kernel runs on one
+// thread. extra: the full workspace, forward_dynamics_team's memory, a flag
+template <typename Op> struct TeamStepValue {
+  static constexpr bool available = true;
+  static constexpr int per_sm = 8;  // (as FD's: the same work per stage, one to four stages)
+  static constexpr int wide_nv = 16;
+  static constexpr bool mujoco_form = false;
+  template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
+    return workspace_bytes<T>(nb, nv, kFullWorkspace) + forward_dynamics_team_bytes<T>(nb, nv) + 16;
+  }
+  template <typename T, typename Team>
+  RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    constexpr int o = step_arg_offset<Op>();
+    int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, m.nv) - 16);
+    if (a.choice[6 + o] != kPinocchioConvention) {
+      t.one([&] { *ok = Op::run(m, w, a); });
+      return *ok;
+    }
+    Workspace<T> wf = carve_workspace<T>(t.extra, m.nb, m.nv, kFullWorkspace);
+    Team tf = t;  // (its extra: forward_dynamics_team's, past the workspace)
+    tf.extra = t.extra + workspace_bytes<T>(m.nb, m.nv, kFullWorkspace);
+    const T* v = o ? a.in[1] : a.in[0] + m.nq;
+    return integrator_step_with<PinocchioStep<T>>(m, wf, a.choice[3 + o], a.in[0], v, a.in[1 + o], a.in[4 + o],
+                                                  a.real[2 + o], a.real[5 + o], a.out[0], a.out[0] + m.nq, a.scratch,
+                                                  tf);
+  }
+};
+template <> struct TeamOp<ops::Integrator> : TeamStepValue<ops::Integrator> {};
+template <> struct TeamOp<ops::PlantStep> : TeamStepValue<ops::PlantStep> {};
+
+// the integrator step and its gradient (integrators.hpp), every scheme, with or without ∂x⁺/∂f_ext
+// (integrator_gradient, integrator_f_ext_gradient, plant_step_gradient):
 // integrator_gradient_with on the team, each stage's ∇FD by aba_derivatives_team and the chain rule's
 // products an entry per index. MuJoCo's convention has no team form: where the team is asked for
 // (the engine's auto does not), the registry's kernel runs on one thread of the team
@@ -273,8 +300,9 @@ template <typename Op> struct TeamStep {
   }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
+    constexpr int o = step_arg_offset<Op>();
     int* ok = reinterpret_cast<int*>(t.extra + extra_bytes<T>(m.nb, m.nv) - 16);
-    if (a.choice[7] != kPinocchioConvention) {
+    if (a.choice[6 + o] != kPinocchioConvention) {
       t.one([&] { *ok = Op::run(m, w, a); });
       return *ok;
     }
@@ -283,13 +311,15 @@ template <typename Op> struct TeamStep {
                                : integrator_gradient_scratch_values(m.nq, m.nv);
     T* x = a.out[0] ? a.out[0] : a.scratch + own;  // x⁺ and AB in the scratch when not asked for, as Op::run
     T* AB = a.out[1] ? a.out[1] : a.scratch + own + m.nq + m.nv;
-    return integrator_gradient_with<PinocchioStep<T>>(m, w, a.choice[4], a.in[0], a.in[1], a.in[2], a.in[5],
-                                                      a.real[3], a.real[6], x, x + m.nq, AB,
+    const T* v = o ? a.in[1] : a.in[0] + m.nq;
+    return integrator_gradient_with<PinocchioStep<T>>(m, w, a.choice[3 + o], a.in[0], v, a.in[1 + o], a.in[4 + o],
+                                                      a.real[2 + o], a.real[5 + o], x, x + m.nq, AB,
                                                       with_fext ? a.out[2] : static_cast<T*>(nullptr), a.scratch, t);
   }
 };
 template <> struct TeamOp<ops::IntegratorGradient> : TeamStep<ops::IntegratorGradient> {};
 template <> struct TeamOp<ops::IntegratorFExtGradient> : TeamStep<ops::IntegratorFExtGradient> {};
+template <> struct TeamOp<ops::PlantStepGradient> : TeamStep<ops::PlantStepGradient> {};
 
 // the step's Hessian (integrator_hessian.hpp), every scheme: integrator_hessian_with on the team (each
 // stage's ∇FD by aba_derivatives_team, IDSVA-SO and the retraction maps on one thread, FDSVA-SO's and

@@ -69,6 +69,14 @@ template <typename S> struct PinocchioStep {
                                   const S* fext, S gravity, S* a, S*) {
     return aba(m, w, q, v, u, fext, gravity, a);
   }
+  // the same on a team: a cooperative one (a model without mimic joints) runs FD through M⁻¹
+  // (forward_dynamics_team, in t.extra; w the full workspace), the serial ABA's a to rounding
+  template <typename Team>
+  RBD_HD static bool acceleration(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                  const S* u, const S* fext, S gravity, S* a, S* scratch) {
+    if constexpr (!Team::cooperative) return acceleration(m, w, q, v, u, fext, gravity, a, scratch);
+    else return forward_dynamics_team(t, m, w, t.extra, q, v, u, fext, gravity, a);
+  }
   RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
                                               const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu, S*) {
     if (!aba_derivatives(m, w, q, v, u, fext, gravity, a, Fq, Fv)) return false;
@@ -109,6 +117,12 @@ template <typename S> struct MujocoStep {
                                   const S* fext, S gravity, S* a, S* scratch) {
     return mujoco_acceleration(m, w, q, v, u, fext, gravity, a, scratch);
   }
+  template <typename Team>
+  RBD_HD static bool acceleration(const Team&, const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
+                                  const S* u, const S* fext, S gravity, S* a, S* scratch) {
+    static_assert(!Team::cooperative, "MuJoCo's convention has no team form");
+    return acceleration(m, w, q, v, u, fext, gravity, a, scratch);
+  }
   RBD_HD static bool acceleration_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* v,
                                               const S* u, const S* fext, S gravity, S* a, S* Fq, S* Fv, S* Fu,
                                               S* scratch) {
@@ -146,10 +160,14 @@ RBD_HD long integrator_fext_gradient_scratch_values(int nq, int nv, int nb) {
 }
 
 // x⁺ = (q⁺ (nq), v⁺ (nv)) written to q_next, v_next, in the coordinates of
-// the convention Conv. false if M is not PD
-template <typename Conv, typename S>
+// the convention Conv. false if M is not PD. Written for a team (model/team.hpp):
+// one thread (InlineTeam, the default), or a GPU team kernel's threads, which
+// split each stage's acceleration (Conv::acceleration on the team); the stage
+// updates and retractions, O(nv), stay on one thread
+template <typename Conv, typename S, typename Team = InlineTeam>
 RBD_HD bool integrator_step_with(const ModelView<S>& m, Workspace<S>& w, int type, const S* q, const S* v,
-                                 const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch) {
+                                 const S* u, const S* fext, S dt, S gravity, S* q_next, S* v_next, S* scratch,
+                                 const Team& t = Team{}) {
   const int nq = m.nq, nv = m.nv;
   S* qs = scratch;             // stage configuration (nq)
   S* vs = qs + nq;             // stage velocity (nv)
@@ -159,34 +177,42 @@ RBD_HD bool integrator_step_with(const ModelView<S>& m, Workspace<S>& w, int typ
   S* step = asum + nv;         // tangent step (nv)
   S* cs = step + nv;           // the convention's scratch
   if (type == kEuler || type == kSemiImplicitEuler || type == kConstantAcceleration) {
-    if (!Conv::acceleration(m, w, q, v, u, fext, gravity, as, cs)) return false;
-    for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
-    for (int k = 0; k < nv; ++k)
-      step[k] = type == kEuler ? dt * v[k]
-              : type == kSemiImplicitEuler ? dt * v_next[k]
-              : dt * v[k] + S(0.5) * dt * dt * as[k];
-    Conv::retract(m, q, step, q_next);
+    if (!Conv::acceleration(t, m, w, q, v, u, fext, gravity, as, cs)) return false;
+    t.one([&] {
+      for (int k = 0; k < nv; ++k) v_next[k] = v[k] + dt * as[k];
+      for (int k = 0; k < nv; ++k)
+        step[k] = type == kEuler ? dt * v[k]
+                : type == kSemiImplicitEuler ? dt * v_next[k]
+                : dt * v[k] + S(0.5) * dt * dt * as[k];
+      Conv::retract(m, q, step, q_next);
+    });
     return true;
   }
   // full-state explicit stages
   const Tableau T = tableau(type);
-  for (int k = 0; k < nv; ++k) vsum[k] = S(0), asum[k] = S(0);
   for (int s = 0; s < T.stages; ++s) {
     // stage state from the initial one with the preceding stage's rates
-    if (s == 0) {
-      for (int k = 0; k < nq; ++k) qs[k] = q[k];
-      for (int k = 0; k < nv; ++k) vs[k] = v[k];
-    } else {
-      const S c = S(T.c[s]) * dt;
-      for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
-      for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
-      Conv::retract(m, q, step, qs);
-    }
-    if (!Conv::acceleration(m, w, qs, vs, u, fext, gravity, as, cs)) return false;
-    for (int k = 0; k < nv; ++k) vsum[k] += S(T.b[s]) * vs[k], asum[k] += S(T.b[s]) * as[k];
+    t.one([&] {
+      if (s == 0) {
+        for (int k = 0; k < nv; ++k) vsum[k] = S(0), asum[k] = S(0);
+        for (int k = 0; k < nq; ++k) qs[k] = q[k];
+        for (int k = 0; k < nv; ++k) vs[k] = v[k];
+      } else {
+        const S c = S(T.c[s]) * dt;
+        for (int k = 0; k < nv; ++k) step[k] = c * vs[k];
+        for (int k = 0; k < nv; ++k) vs[k] = v[k] + c * as[k];
+        Conv::retract(m, q, step, qs);
+      }
+    });
+    if (!Conv::acceleration(t, m, w, qs, vs, u, fext, gravity, as, cs)) return false;
+    t.one([&] {
+      for (int k = 0; k < nv; ++k) vsum[k] += S(T.b[s]) * vs[k], asum[k] += S(T.b[s]) * as[k];
+    });
   }
-  for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
-  Conv::retract(m, q, step, q_next);
+  t.one([&] {
+    for (int k = 0; k < nv; ++k) step[k] = dt * vsum[k], v_next[k] = v[k] + dt * asum[k];
+    Conv::retract(m, q, step, q_next);
+  });
   return true;
 }
 
