@@ -249,12 +249,18 @@ template <> struct TeamOp<ops::ForwardDynamicsGradient> {
 
 // the step's arguments: the integrator ops take (q, qd, u, dt, type, f_ext, gravity, convention), the
 // plant ones (x, u, dt, type, f_ext, gravity, convention): the offset of every argument after qd
-template <typename Op> RBD_HD constexpr int step_arg_offset() { return Op::spec.n_args == 8 ? 1 : 0; }
+template <typename Op> RBD_HD constexpr int step_arg_offset() {
+  constexpr int o = Op::spec.args[0].name[0] == 'x' && Op::spec.args[0].name[1] == '\0' ? 0 : 1;
+  static_assert(Op::spec.n_args == 7 + o, "a step's arguments: (q, qd | x), u, dt, type, f_ext, gravity, convention");
+  return o;
+}
 
 // the integrator step's value (integrator, plant_step; integrators.hpp), every scheme:
 // integrator_step_with on the team, each stage's acceleration by forward_dynamics_team (FD through
 // M⁻¹: the serial step's ABA to rounding), the stage updates and retractions on one thread. The
-// op's workspace is linear; M⁻¹ needs the full one, which the team carves from its extra. MuJoCo's
+// op's workspace is linear; M⁻¹ needs the full one, which the team carves from its extra (a slice
+// as large as FD's, and the linear one unused beside it: the price of the sample kernel's small
+// workspace, which the op keeps). MuJoCo's
 // convention has no team form: where the team is asked for, the registry's kernel runs on one
 // thread. extra: the full workspace, forward_dynamics_team's memory, a flag
 template <typename Op> struct TeamStepValue {
