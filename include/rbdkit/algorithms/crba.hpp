@@ -207,7 +207,7 @@ template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, c
 // crba on a team of threads (model/team.hpp), for a model without mimic joints: crba_world's passes
 // in the root's reference frame (world.hpp, as minv_team's). M zeroed (each); the placements,
 // subspace columns and body inertias side by side (world_placements_team); the composites
-// Ic_λ += Ic_i, children first, on one thread (the only chain); then every column side by side
+// Ic_λ += Ic_i, children first, on one thread (a chain, as the placements are); then every column side by side
 // (crba_world_column: a column writes only its own entries). An InlineTeam runs crba (body
 // coordinates: the same M to rounding)
 template <typename S, typename Team>

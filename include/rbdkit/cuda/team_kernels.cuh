@@ -260,9 +260,9 @@ template <typename Op> RBD_HD constexpr int step_arg_offset() {
 // M⁻¹: the serial step's ABA to rounding), the stage updates and retractions on one thread. The
 // op's workspace is linear; M⁻¹ needs the full one, which the team carves from its extra (a slice
 // as large as FD's, and the linear one unused beside it: the price of the sample kernel's small
-// workspace, which the op keeps). MuJoCo's
-// convention has no team form: where the team is asked for, the registry's kernel runs on one
-// thread. extra: the full workspace, forward_dynamics_team's memory, a flag
+// workspace, which the op keeps). MuJoCo's convention has no team form: where the team is asked
+// for, the registry's kernel runs on one thread. extra: the full workspace, forward_dynamics_team's
+// memory, a flag
 template <typename Op> struct TeamStepValue {
   static constexpr bool available = true;
   static constexpr int per_sm = 8;  // (as FD's: the same work per stage, one to four stages)
