@@ -66,19 +66,20 @@ constexpr unsigned long long kLayout = fingerprint(static_cast<Ops*>(nullptr));
 // f() with its exception turned into text: 0, or 1 with the message in error[0, size) (cut to fit,
 // NUL-terminated). The instance's entry points run through it (see above)
 template <typename F> int guarded(F&& f, char* error, int size) noexcept {
-  const char* what = nullptr;
+  // (the copy is made inside the handler: what() dies with the exception)
+  auto report = [&](const char* what) {
+    if (size <= 0) return;
+    const size_t n = std::min(std::strlen(what), static_cast<size_t>(size - 1));
+    std::memcpy(error, what, n);
+    error[n] = '\0';
+  };
   try {
     f();
     return 0;
   } catch (const std::exception& e) {
-    what = e.what();
+    report(e.what());
   } catch (...) {
-    what = "backend='cuda' (the robot's instance): an exception that is not a std::exception";
-  }
-  if (size > 0) {
-    const size_t n = std::min(std::strlen(what), static_cast<size_t>(size - 1));
-    std::memcpy(error, what, n);
-    error[n] = '\0';
+    report("backend='cuda' (the robot's instance): an exception that is not a std::exception");
   }
   return 1;
 }
