@@ -13,8 +13,8 @@ and scratch) forced into global memory and into the block's shared memory
 (RBDKIT_CUDA_WORK; the default, "auto", picks shared where it fits and the
 batch runs in at most three waves there; docs/cuda.md).
 
-With --ops, also a state cost (tangent), the momentum cost and the position
-barrier (not timed by default).
+With --ops, also the rk4 step's value, a state cost (tangent), the momentum
+cost and the position barrier (not timed by default).
 
 With --kernels: two more resident columns, the operations that have a team
 kernel (ID, M, M⁻¹, FD, ∇ID, ∇FD, the step gradient and Hessian, the costs
@@ -57,12 +57,13 @@ OPS = (("ID", "inverse_dynamics"), ("M", "crba"), ("M⁻¹", "minv"), ("FD", "fo
        ("∇ID", "inverse_dynamics_gradient"), ("∇FD", "forward_dynamics_gradient"),
        ("rk4 ∇step", "integrator_gradient"), ("euler ∇²step", "plant_step_hessian"))
 BATCHES = (1, 16, 64, 256, 1024, 4096, 16384)
-# the costs and barriers, timed only when --ops names them (the team kernels' per-SM rule)
-COST_OPS = (("state cost", "quadratic_state_cost_tangent"), ("momentum cost", "momentum_cost"),
-            ("q barrier", "joint_position_barrier"))
+# more operations with a team kernel, timed only when --ops names them (their per-SM rule has no GPU
+# measurement yet): the rk4 step's value, a state cost (tangent), the momentum cost, the position barrier
+EXTRA_OPS = (("rk4 step", "integrator"), ("state cost", "quadratic_state_cost_tangent"),
+             ("momentum cost", "momentum_cost"), ("q barrier", "joint_position_barrier"))
 # the operations with a team kernel (include/rbdkit/cuda/team_kernels.cuh; --kernels)
 TEAM_OPS = ("inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient", "forward_dynamics_gradient",
-            "integrator_gradient", "plant_step_hessian") + tuple(o[1] for o in COST_OPS)
+            "integrator_gradient", "plant_step_hessian") + tuple(o[1] for o in EXTRA_OPS)
 # the operations a CUDA instance holds (rbdkit/cuda/instance.cuh's Ops)
 INSTANCE_OPS = ("inverse_dynamics", "minv", "forward_dynamics", "inverse_dynamics_gradient",
                 "forward_dynamics_gradient", "integrator_gradient")
@@ -96,7 +97,7 @@ def arguments(h, op, B, rng):
     u = rng.uniform(-1, 1, (B, h.nv)).astype(dt)
     if op in ("crba", "minv"):
         return (q,), {}
-    if op == "integrator_gradient":
+    if op in ("integrator", "integrator_gradient"):
         return (q, qd, u), {"dt": 0.01, "integrator_type": "rk4"}
     if op == "plant_step_hessian":
         return (np.concatenate([q, qd], axis=1), u), {"dt": 0.01, "integrator_type": "euler"}
@@ -205,7 +206,7 @@ def main():
     ap.add_argument("--batches", help="comma-separated batch sizes, e.g. 1,256,4096 (default: 1 to 16384)")
     ap.add_argument("--robots", help="comma-separated, e.g. atlas,atlas_floating (default: all six)")
     ap.add_argument("--ops", help="comma-separated operation names, e.g. forward_dynamics_gradient (default: all eight; "
-                    "also momentum_cost, quadratic_state_cost_tangent, joint_position_barrier)")
+                    "also integrator, momentum_cost, quadratic_state_cost_tangent, joint_position_barrier)")
     ap.add_argument("--arrays", default="any", choices=("any", "torch", "cupy", "none"),
                     help="the device arrays of the resident column")
     ap.add_argument("--kernels", action="store_true",
@@ -235,11 +236,11 @@ def main():
             ap.error(f"--batches: expected positive batch sizes, got {a.batches!r}")
     ops = OPS
     if a.ops:
-        known_ops = {o[1] for o in OPS + COST_OPS}
+        known_ops = {o[1] for o in OPS + EXTRA_OPS}
         unknown = [n for n in a.ops.split(",") if n not in known_ops]
         if unknown:
             ap.error(f"--ops: unknown {', '.join(unknown)}; expected some of {', '.join(sorted(known_ops))}")
-        ops = [o for o in OPS + COST_OPS if o[1] in a.ops.split(",")]
+        ops = [o for o in OPS + EXTRA_OPS if o[1] in a.ops.split(",")]
     dev = device_module(a.arrays)
     warnings.filterwarnings("ignore", message=".*inertia.*")  # the bundled Atlas's published inertias
     nosync = lambda: None  # noqa: E731

@@ -283,15 +283,16 @@ def test_bench_gpu_script(tmp_path):
     # the Euler step Hessian of iiwa is 14 x 21 x 21 values (49 kB) a sample: skipped at every B
     hess = [r for r in rows if r[2].strip() == "euler ∇²step"]
     assert len(hess) == 14 and all("over --max-gb" in r[7] for r in hess)
-    # the costs and the barrier, named by --ops (their team kernels' rule is set from these rows)
-    cost_ops = "momentum_cost,quadratic_state_cost_tangent,joint_position_barrier"
+    # the step's value, the costs and the barrier, named by --ops (their team kernels' rule is set from
+    # these rows)
+    cost_ops = "integrator,momentum_cost,quadratic_state_cost_tangent,joint_position_barrier"
     r = subprocess.run([sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
                         "--budget", "0.001", "--batches", "1,16", "--ops", cost_ops, "--kernels", "--out", str(out)],
                        env=dict(os.environ, RBDKIT_CUDA_INTERPRET="1"), capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     rows = [line.split("|")[1:-1] for line in out.read_text().splitlines() if line.startswith("| iiwa |")]
-    assert sorted({r[2].strip() for r in rows}) == ["momentum cost", "q barrier", "state cost"]
-    assert len(rows) == 2 * 3 * 2 and all(float(r[5]) > 0 and float(r[6]) > 0 for r in rows)
+    assert sorted({r[2].strip() for r in rows}) == ["momentum cost", "q barrier", "rk4 step", "state cost"]
+    assert len(rows) == 2 * 4 * 2 and all(float(r[5]) > 0 and float(r[6]) > 0 for r in rows)
     # --ops and --batches narrow the table; a bad batch size is named
     script = [sys.executable, os.path.join(root, "bench", "gpu.py"), "--robots", "iiwa", "--arrays", "none",
               "--budget", "0.001", "--ops", "minv", "--out", str(out)]
