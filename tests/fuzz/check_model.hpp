@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -187,7 +188,17 @@ inline void check_model(const rbd::Model& m, bool expect_floating) {
   }
   for (double x : M) scale = std::max(scale, std::fabs(x));
   if (!(scale <= 1e300)) return;  // no meaningful tolerance (huge mimic multipliers)
-  const double tol = 1e-11 * (nb + nv) * scale + 1e-300;
+  // a subnormal inertia (a mass of 5e-324) has no relative precision: each product with it may round
+  // by up to the smallest subnormal, which the lever arms then multiply by up to L² μ² (a mass at 1e12
+  // gives M ~ 1e-299, where CRBA and RNEA may differ by all of it)
+  bool subnormal_inertia = false;
+  for (const BodyDesc<double>& b : m.bodies)
+    for (double x : {b.I.m, b.I.h.x, b.I.h.y, b.I.h.z, b.I.I.m[0], b.I.I.m[1], b.I.I.m[2], b.I.I.m[4], b.I.I.m[5],
+                     b.I.I.m[8]})
+      if (x != 0 && std::fabs(x) < std::numeric_limits<double>::min()) subnormal_inertia = true;
+  const double subnormal =
+      subnormal_inertia ? std::numeric_limits<double>::denorm_min() * 16 * (nb + nv) * L * L * mu * mu : 0.0;
+  const double tol = 1e-11 * (nb + nv) * scale + 1e-300 + subnormal;
   for (int r = 0; r < nv; ++r) {
     double Mqdd = 0;
     for (int c = 0; c < nv; ++c) {
