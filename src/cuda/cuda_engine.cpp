@@ -98,10 +98,7 @@ struct CudaEngine::Impl {
   unsigned long max_work_bytes = kMaxWorkBytes;
   cuda::WorkMemory work_memory = cuda::kWorkAuto;
   std::string kernel = "auto";  // set_kernel
-  std::vector<unsigned long> team_extra;  // per operation: its team kernel's extra bytes per sample
-  std::vector<int> team_per_sm;            // per operation: TeamOp<Op>::per_sm
-  std::vector<int> team_wide_nv;           // per operation: TeamOp<Op>::wide_nv
-  std::vector<int> team_mujoco_form;       // per operation: TeamOp<Op>::mujoco_form
+  std::vector<cuda::TeamInfo> teams;  // per operation: its team kernel's extra bytes and rule
   cuda::DeviceLimits limits{};
   std::shared_ptr<const CudaInstance> instance;  // use_instance: the robot's own kernels (null: none)
   std::mutex call;
@@ -123,15 +120,9 @@ struct CudaEngine::Impl {
     try {
       work_memory = work_memory_from_env();
       if (const char* k = std::getenv("RBDKIT_CUDA_KERNEL"); k && *k) kernel = checked_kernel(k, "RBDKIT_CUDA_KERNEL");
-      team_extra.assign(ops::op_table().size(), 0);
-      team_per_sm.assign(ops::op_table().size(), 0);
-      team_wide_nv.assign(ops::op_table().size(), 0);
-      team_mujoco_form.assign(ops::op_table().size(), 0);
-      if (d == "float64")
-        cuda::team_extras<double>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
-                                  team_wide_nv.data(), team_mujoco_form.data());
-      else cuda::team_extras<float>(ops::AllOps{}, model.nb(), model.nv, team_extra.data(), team_per_sm.data(),
-                                    team_wide_nv.data(), team_mujoco_form.data());
+      teams.assign(ops::op_table().size(), cuda::TeamInfo{});
+      if (d == "float64") cuda::team_infos<double>(ops::AllOps{}, model.nb(), model.nv, teams.data());
+      else cuda::team_infos<float>(ops::AllOps{}, model.nb(), model.nv, teams.data());
       failed_host = static_cast<int*>(dev->alloc_host(sizeof(int)));
       *failed_host = 0;
       failed_device = static_cast<int*>(dev->device_address(failed_host));
@@ -171,11 +162,12 @@ struct CudaEngine::Impl {
   // auto keeps the sample kernel for it, `convention` being the call's (OutputConvention); the costs
   // and barriers have theirs in both conventions (mujoco_form)
   bool uses_team(int op, long B, int convention) const {
-    if (!team_per_sm[op] || model.general_path() || kernel == "sample") return false;  // (0: no team kernel)
+    const cuda::TeamInfo& r = teams[op];
+    if (!r.per_sm || model.general_path() || kernel == "sample") return false;  // (0: no team kernel)
     if (kernel == "team") return true;
-    if (convention != kPinocchioConvention && !team_mujoco_form[op]) return false;
-    return B <= static_cast<long>(team_per_sm[op]) * std::max(limits.multiprocessors, 1) ||
-           (team_wide_nv[op] > 0 && model.nv >= team_wide_nv[op]);
+    if (convention != kPinocchioConvention && !r.mujoco_form) return false;
+    return B <= static_cast<long>(r.per_sm) * std::max(limits.multiprocessors, 1) ||
+           (r.wide_nv > 0 && model.nv >= r.wide_nv);
   }
   // the call's output convention (Pinocchio's for an operation without one)
   static int call_convention(const ops::OpSpec& op, const ops::OpCall& c) {
@@ -204,12 +196,13 @@ template <typename T> void CudaEngine::Impl::run(int op_id, const ops::OpCall& c
   const long B = c.B;
   cuda::DeviceCall<T> dc{};
   dc.model = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, static_cast<const BodyDesc<T>*>(bodies.p)};
-  dc.layout = ops::workspace_layout(op, m);
-  dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
   const bool team = uses_team(op_id, B, call_convention(op, c));
+  // (a team that needs the full workspace gets it where the op's own is linear: TeamInfo::full_workspace)
+  dc.layout = team && teams[op_id].full_workspace ? kFullWorkspace : ops::workspace_layout(op, m);
+  dc.ws_bytes = round16(workspace_bytes<T>(m.nb(), m.nv, dc.layout));
   const unsigned long scratch_bytes = sizeof(T) * ops::scratch_values(op, m);
   // a team's slice: the workspace, the op's scratch, the team's extra at the end (team_sample)
-  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? round16(scratch_bytes) + team_extra[op_id] : scratch_bytes)));
+  dc.work_bytes = std::max(16ul, round16(dc.ws_bytes + (team ? round16(scratch_bytes) + teams[op_id].extra : scratch_bytes)));
   auto shape_of = [&](long n, cuda::WorkMemory where) {
     return team ? cuda::team_launch_shape(n, dc.work_bytes, limits, where)
                 : cuda::launch_shape(n, dc.work_bytes, limits, where);

@@ -127,18 +127,25 @@ struct SerialTeam {
 // model (past it a sample per thread keeps every lane busy; cuda_engine.cpp, uses_team); wide_nv: from
 // this nv on, auto takes the team at every B (0: never), where one thread's chain is too long for a
 // sample per thread to catch up at any B; mujoco_form: whether the team splits the work in MuJoCo's
-// output convention too (where it does not, auto keeps the sample kernel for such a call)
+// output convention too (where it does not, auto keeps the sample kernel for such a call). TeamRule
+// holds them
 template <typename Op> struct TeamOp {
   static constexpr bool available = false;
+};
+// a team operation's rule for the engine (the members above); full_workspace: the team needs the full
+// workspace where the op's own is linear, and the engine carves that one for a team launch
+template <int PerSm, int WideNv, bool MujocoForm = false, bool FullWorkspace = false> struct TeamRule {
+  static constexpr bool available = true;
+  static constexpr int per_sm = PerSm;
+  static constexpr int wide_nv = WideNv;
+  static constexpr bool mujoco_form = MujocoForm;
+  static constexpr bool full_workspace = FullWorkspace;
 };
 
 // ID and the per-body motion and forces: rnea_team (rnea.hpp), then the outputs an entry per index
 // (the accelerations without gravity, a chain of rotations, on one thread)
-template <> struct TeamOp<ops::InverseDynamics> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 0;  // (O(nb) work: floating Atlas's sample kernel led from B = 4096)
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::InverseDynamics> : TeamRule<8, 0> {
+  // (wide_nv 0: O(nb) work, floating Atlas's sample kernel led from B = 4096)
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 0; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -159,11 +166,7 @@ template <> struct TeamOp<ops::InverseDynamics> {
 // M: crba_team (crba.hpp), in world coordinates: the placements and body inertias an entry per index,
 // the composites on one thread, then a column per index. per_sm and wide_nv as M⁻¹'s (no GPU
 // measurement yet: CRBA's columns are lighter than M⁻¹'s, each walking its ancestors only)
-template <> struct TeamOp<ops::Crba> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::Crba> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 0; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -173,11 +176,7 @@ template <> struct TeamOp<ops::Crba> {
 };
 
 // M⁻¹: minv_team (minv.hpp); extra: its flag
-template <> struct TeamOp<ops::Minv> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::Minv> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -190,11 +189,7 @@ template <> struct TeamOp<ops::Minv> {
 // FD through M⁻¹, qdd = M⁻¹ (u - c): forward_dynamics_team (minv.hpp), the bias c by RNEA on one
 // thread beside minv_team on the first warp, then each row of the product. The same values as
 // forward_dynamics (minv.hpp). extra: forward_dynamics_team_bytes (RNEA's workspace, u - c, the flag)
-template <> struct TeamOp<ops::ForwardDynamics> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::ForwardDynamics> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return forward_dynamics_team_bytes<T>(nb, nv);
   }
@@ -205,11 +200,7 @@ template <> struct TeamOp<ops::ForwardDynamics> {
 };
 
 // ∂ID/∂q and ∂ID/∂qd: rnea_derivatives_team (rnea_derivatives.hpp)
-template <> struct TeamOp<ops::InverseDynamicsGradient> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::InverseDynamicsGradient> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int nv) {
     return workspace_array_bytes<T>(2ul * nv * nv);
   }
@@ -229,11 +220,7 @@ template <> struct TeamOp<ops::InverseDynamicsGradient> {
 };
 
 // ∂qdd/∂q and ∂qdd/∂qd = -M⁻¹ ∂ID/∂(q, qd) at qdd = FD: aba_derivatives_team (aba_derivatives.hpp)
-template <> struct TeamOp<ops::ForwardDynamicsGradient> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::ForwardDynamicsGradient> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv);
   }
@@ -257,19 +244,14 @@ template <typename Op> RBD_HD constexpr int step_arg_offset() {
 
 // the integrator step's value (integrator, plant_step; integrators.hpp), every scheme:
 // integrator_step_with on the team, each stage's acceleration by forward_dynamics_team (FD through
-// M⁻¹: the serial step's ABA to rounding), the stage updates and retractions on one thread. The
-// op's workspace is linear; M⁻¹ needs the full one, which the team carves from its extra (a slice
-// as large as FD's, and the linear one unused beside it: the price of the sample kernel's small
-// workspace, which the op keeps). MuJoCo's convention has no team form: where the team is asked
-// for, the registry's kernel runs on one thread. extra: the full workspace, forward_dynamics_team's
-// memory, a flag
-template <typename Op> struct TeamStepValue {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;  // (as FD's: the same work per stage, one to four stages)
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+// M⁻¹: the serial step's ABA to rounding), the stage updates and retractions on one thread. M⁻¹
+// needs the full workspace where the op's own is linear: full_workspace, so the engine carves the
+// full one for a team launch. MuJoCo's convention has no team form: where the team is asked for,
+// the registry's kernel runs on one thread. extra: forward_dynamics_team's memory, a flag
+template <typename Op> struct TeamStepValue : TeamRule<8, 16, false, true> {
+  // (per_sm as FD's: the same work per stage, one to four stages)
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
-    return workspace_bytes<T>(nb, nv, kFullWorkspace) + forward_dynamics_team_bytes<T>(nb, nv) + 16;
+    return forward_dynamics_team_bytes<T>(nb, nv) + 16;
   }
   template <typename T, typename Team>
   RBD_HD static bool run(const Team& t, const ModelView<T>& m, Workspace<T>& w, const ops::OpArgs<T>& a) {
@@ -279,13 +261,10 @@ template <typename Op> struct TeamStepValue {
       t.one([&] { *ok = Op::run(m, w, a); });
       return *ok;
     }
-    Workspace<T> wf = carve_workspace<T>(t.extra, m.nb, m.nv, kFullWorkspace);
-    Team tf = t;  // (its extra: forward_dynamics_team's, past the workspace)
-    tf.extra = t.extra + workspace_bytes<T>(m.nb, m.nv, kFullWorkspace);
     const T* v = o ? a.in[1] : a.in[0] + m.nq;
-    return integrator_step_with<PinocchioStep<T>>(m, wf, a.choice[3 + o], a.in[0], v, a.in[1 + o], a.in[4 + o],
+    return integrator_step_with<PinocchioStep<T>>(m, w, a.choice[3 + o], a.in[0], v, a.in[1 + o], a.in[4 + o],
                                                   a.real[2 + o], a.real[5 + o], a.out[0], a.out[0] + m.nq, a.scratch,
-                                                  tf);
+                                                  t);
   }
 };
 template <> struct TeamOp<ops::Integrator> : TeamStepValue<ops::Integrator> {};
@@ -296,11 +275,8 @@ template <> struct TeamOp<ops::PlantStep> : TeamStepValue<ops::PlantStep> {};
 // integrator_gradient_with on the team, each stage's ∇FD by aba_derivatives_team and the chain rule's
 // products an entry per index. MuJoCo's convention has no team form: where the team is asked for
 // (the engine's auto does not), the registry's kernel runs on one thread of the team
-template <typename Op> struct TeamStep {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 32;  // (four ∇FD and their products per sample: more work to split)
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <typename Op> struct TeamStep : TeamRule<32, 16> {
+  // (per_sm: four ∇FD and their products per sample, more work to split)
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + 16;
   }
@@ -333,11 +309,8 @@ template <> struct TeamOp<ops::PlantStepGradient> : TeamStep<ops::PlantStepGradi
 // thread. MuJoCo's convention has no team form: where the team is asked for, the registry's kernel
 // runs on one thread (a mimic model never gets the team: the engine's uses_team). extra:
 // aba_derivatives_team's memory, the team's products (integrator_hessian_team_values), a flag
-template <> struct TeamOp<ops::PlantStepHessian> {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 32;  // (as the step's gradient: the stages' work is more to split)
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = false;
+template <> struct TeamOp<ops::PlantStepHessian> : TeamRule<32, 16> {
+  // (per_sm as the step's gradient: the stages' work is more to split)
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return aba_derivatives_team_bytes<T>(nb, nv) + workspace_array_bytes<T>(integrator_hessian_team_values(nv)) + 16;
   }
@@ -364,11 +337,7 @@ template <> struct TeamOp<ops::PlantStepHessian> {
 // entry per index. per_sm as ID's (no GPU measurement yet); wide_nv 16 where the Hessian is dense
 // (O(nv²) entries, which the team writes coalesced and one thread a sample writes alone), 0 for
 // the barriers' O(nv). extra: a flag (the failures of com_cost and momentum_cost)
-struct TeamCost {
-  static constexpr bool available = true;
-  static constexpr int per_sm = 8;
-  static constexpr int wide_nv = 16;
-  static constexpr bool mujoco_form = true;
+struct TeamCost : TeamRule<8, 16, true> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int, int) { return 16; }
   RBD_HD static int* flag(unsigned char* extra) { return reinterpret_cast<int*>(extra); }
 };
@@ -417,8 +386,7 @@ template <> struct TeamOp<ops::MomentumCost> : TeamCost {
   }
 };
 // extra: each coordinate's term of the value (n <= nq <= nv + nb)
-template <int Which> struct TeamOp<ops::JointBarrier<Which>> : TeamCost {
-  static constexpr int wide_nv = 0;
+template <int Which> struct TeamOp<ops::JointBarrier<Which>> : TeamRule<8, 0, true> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return workspace_array_bytes<T>(nv + nb);
   }
@@ -498,28 +466,25 @@ void interpret_team_op(const DeviceCall<T>& c, LaunchShape shape) {
   }
 }
 
-template <typename Op> constexpr int team_per_sm() {
-  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::per_sm;
-  else return 0;
+// what the engine knows of an operation's team kernel (per_sm 0: it has none)
+struct TeamInfo {
+  unsigned long extra = 0;  // TeamOp<Op>::extra_bytes
+  int per_sm = 0, wide_nv = 0;
+  bool mujoco_form = false, full_workspace = false;
+};
+template <typename Op, typename T> TeamInfo team_info(int nb, int nv) {
+  if constexpr (TeamOp<Op>::available) {
+    using R = TeamOp<Op>;
+    return {R::template extra_bytes<T>(nb, nv), R::per_sm, R::wide_nv, R::mujoco_form, R::full_workspace};
+  } else {
+    (void)nb, (void)nv;
+    return {};
+  }
 }
-template <typename Op> constexpr int team_wide_nv() {
-  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::wide_nv;
-  else return 0;
-}
-template <typename Op> constexpr bool team_mujoco_form() {
-  if constexpr (TeamOp<Op>::available) return TeamOp<Op>::mujoco_form;
-  else return false;
-}
-
-// per registered operation (ops::AllOps' order): its team's extra bytes, per_sm (0: no team kernel),
-// wide_nv and mujoco_form
-template <typename T, typename... Op>
-void team_extras(ops::OpList<Op...>, int nb, int nv, unsigned long* extra, int* per_sm, int* wide_nv,
-                 int* mujoco_form) {
+// per registered operation (ops::AllOps' order)
+template <typename T, typename... Op> void team_infos(ops::OpList<Op...>, int nb, int nv, TeamInfo* out) {
   int k = 0;
-  ((extra[k] = team_extra_bytes<Op, T>(nb, nv), per_sm[k] = team_per_sm<Op>(), wide_nv[k] = team_wide_nv<Op>(),
-    mujoco_form[k] = team_mujoco_form<Op>(), ++k),
-   ...);
+  ((out[k++] = team_info<Op, T>(nb, nv)), ...);
 }
 
 }  // namespace cuda
