@@ -286,8 +286,8 @@ TEST_P(Derivatives, ForwardDynamicsGradientsAccelerationIsAbas) {
   }
 }
 
-// minv computes a tree with a free root in the root's own frame (world.hpp's reference frame; its S the
-// identity) unless asked for world coordinates. On every floating model: M M⁻¹ = 1 in that frame with
+// minv's direct passes (minv_passes) compute a tree with a free root in the root's own frame (world.hpp's
+// reference frame; its S the identity) unless asked for world coordinates. On every floating model: M M⁻¹ = 1 in that frame with
 // the base near the origin and far from it, to n u max|M| max|M⁻¹| (u = 1.1e-16, the unit roundoff),
 // which the world frame's M⁻¹ misses 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on Atlas, against
 // 5e-14 and 2e-13 here); the two frames agree near the origin; and the column path (the team kernels')
@@ -310,8 +310,8 @@ TEST(RootFrame, MinvIsTheInverse) {
       integrate(mv, q0.data(), d.data(), q.data());
       q[0] += 100 * trial, q[1] -= 50 * trial, q[2] += 20 * trial;
       std::vector<double> Mr(nv * nv), Mw(nv * nv), M(nv * nv), Mc(nv * nv, 0.0), scratch(nv * nv);
-      ASSERT_TRUE(minv(mv, w, q.data(), true, Mr.data()));
-      ASSERT_TRUE(minv(mv, w, q.data(), true, Mw.data(), true));
+      ASSERT_TRUE(minv_passes(mv, w, q.data(), true, Mr.data()));
+      ASSERT_TRUE(minv_passes(mv, w, q.data(), true, Mw.data(), true));
       crba(mv, w, q.data(), M.data());
       double scale = 0, err = 0, ident = 0, mnorm = 0;
       for (int r = 0; r < nv; ++r)
@@ -335,9 +335,9 @@ TEST(RootFrame, MinvIsTheInverse) {
   }
 }
 
-// With a free root, M⁻¹, ∇ID and ∇FD are computed in the root's frame, where the base's position never
-// enters: moving the base 100 m changes no bit of them (in world coordinates it changed them by 1e-10 to
-// 4e-9 relative). Near the origin ∇ID and M⁻¹ agree with the world frame's passes to 1e-11 (the world
+// With a free root, M⁻¹ (the direct passes), ∇ID and ∇FD are computed in the root's frame, where the
+// base's position never enters: moving the base 100 m changes no bit of them (in world coordinates it
+// changed them by 1e-10 to 4e-9 relative). Near the origin ∇ID and M⁻¹ agree with the world frame's passes to 1e-11 (the world
 // frame's own rounding, 3e-12 seen on floating Atlas); a mimic model (M⁻¹ from the world-frame CRBA)
 // only that
 TEST(RootFrame, BasePositionDoesNotEnter) {
@@ -364,7 +364,7 @@ TEST(RootFrame, BasePositionDoesNotEnter) {
       EXPECT_TRUE(aba(mv, w, qq.data(), qd.data(), tau.data(), fext.data(), -9.81, a.data()));
       rnea_derivatives(mv, w, qq.data(), qd.data(), a.data(), fext.data(), -9.81, Dq.data(), Dv.data(),
                        static_cast<double*>(nullptr), false, leave_world);
-      EXPECT_TRUE(minv(mv, w, qq.data(), true, Mi.data(), leave_world));
+      EXPECT_TRUE(minv_passes(mv, w, qq.data(), true, Mi.data(), leave_world));
       EXPECT_TRUE(aba_derivatives(mv, w, qq.data(), qd.data(), tau.data(), fext.data(), -9.81, a.data(), Fq.data(),
                                   Fv.data()));
       std::vector<double> out;
@@ -384,7 +384,7 @@ TEST(RootFrame, BasePositionDoesNotEnter) {
   }
 }
 
-// M⁻¹'s serial passes (F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
+// M⁻¹'s serial passes (minv_passes: F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
 // 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path the team
 // kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and in float
 // (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
@@ -406,7 +406,7 @@ TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
     for (auto& x : d) x = 2 * U(rng);
     integrate(mv, q0.data(), d.data(), q.data());
     std::vector<double> Mi(nv * nv), Mc(nv * nv, 0.0), M(nv * nv);
-    ASSERT_TRUE(minv(mv, w, q.data(), true, Mi.data()));
+    ASSERT_TRUE(minv_passes(mv, w, q.data(), true, Mi.data()));
     if (!mv.has_mimic) {
       std::vector<double> scratch(nv * nv);
       ASSERT_TRUE(minv_backward_pass(mv, w, q.data(), scratch.data()));
@@ -432,6 +432,59 @@ TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
     std::vector<double> Mid(Mif.begin(), Mif.end());
     EXPECT_LT(max_rel_err(Mid, Mi), 2e-3) << "float, trial " << trial;  // cond(M)·ε, registry_helpers.hpp
   }
+}
+
+// M⁻¹ through M's tree-sparse factorisation (minv_factored, CRBA then LTDL; the minv operation's path
+// where minv_factored_pays) on every model without mimic joints, whichever path minv takes there:
+// M Z = 1 to n u max|M| max|Z| (u = 1.1e-16, the unit roundoff; as RootFrame.MinvIsTheInverse bounds
+// the passes), Z symmetric and equal to the direct passes' M⁻¹ to 1e-9 relative; without `dense` the
+// same upper triangle, bit for bit, over a zero strict lower one; and the minv operation takes it, bit
+// for bit, exactly where minv_factored_pays says so
+TEST(MinvFactored, IsTheInverse) {
+  int checked = 0;
+  for (const ModelCase& mc : all_cases()) {
+    const Model m = Model::from_urdf_file(mc.path, mc.floating);
+    if (m.general_path()) continue;  // (mimic joints: M's Cholesky inverse, MinvPassesEqualTheColumnPath)
+    SCOPED_TRACE(mc.path + (mc.floating ? " floating" : ""));
+    ++checked;
+    WorkspaceBuffer buf(m);
+    Workspace<double>& w = buf.get();
+    const ModelView<double> mv = m.view();
+    const int nv = m.nv;
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::vector<double> q0 = m.neutral(), d(nv), q(m.nq);
+    for (int trial = 0; trial < 3; ++trial) {
+      for (auto& x : d) x = 2 * U(rng);
+      integrate(mv, q0.data(), d.data(), q.data());
+      std::vector<double> Z(nv * nv), Zu(nv * nv), Zp(nv * nv), Zop(nv * nv), M(nv * nv);
+      ASSERT_TRUE(minv_factored(mv, w, q.data(), true, Z.data()));
+      ASSERT_TRUE(minv_factored(mv, w, q.data(), false, Zu.data()));
+      ASSERT_TRUE(minv_passes(mv, w, q.data(), true, Zp.data()));
+      ASSERT_TRUE(minv(mv, w, q.data(), true, Zop.data()));
+      crba(mv, w, q.data(), M.data());
+      double mnorm = 0, znorm = 0, ident = 0, sym = 0, err = 0;
+      for (int k = 0; k < nv * nv; ++k) {
+        mnorm = std::max(mnorm, std::abs(M[k]));
+        znorm = std::max(znorm, std::abs(Z[k]));
+      }
+      for (int r = 0; r < nv; ++r)
+        for (int c = 0; c < nv; ++c) {
+          double s = 0;
+          for (int l = 0; l < nv; ++l) s += M[r * nv + l] * Z[l * nv + c];
+          ident = std::max(ident, std::abs(s - (r == c ? 1.0 : 0.0)));
+          sym = std::max(sym, std::abs(Z[r * nv + c] - Z[c * nv + r]));
+          err = std::max(err, std::abs(Z[r * nv + c] - Zp[r * nv + c]));
+          EXPECT_EQ(Zu[r * nv + c], r > c ? 0.0 : Z[r * nv + c]) << r << ", " << c;
+        }
+      EXPECT_LT(ident, 1.1e-16 * nv * mnorm * znorm) << "trial " << trial;
+      EXPECT_EQ(sym, 0.0) << "trial " << trial;
+      EXPECT_LT(err, 1e-9 * znorm) << "trial " << trial;
+      EXPECT_EQ(std::memcmp(Zop.data(), (minv_factored_pays(mv) ? Z : Zp).data(), nv * nv * sizeof(double)), 0)
+          << "trial " << trial;
+    }
+  }
+  EXPECT_GE(checked, 8);
 }
 
 INSTANTIATE_TEST_SUITE_P(Models, Derivatives, ::testing::ValuesIn(all_cases()), rbd_test::case_name);

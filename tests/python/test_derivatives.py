@@ -133,10 +133,17 @@ def test_per_pass_helpers_compose(ref):
         D = rbd.inverse_dynamics_gradient(q, qd, qdd)
         assert_close(rbd.inverse_dynamics_gradient_bpass_dq(q, qd, qdd, dV, dA), D[:, :nv], "bpass_dq", 1e-12)
         assert_close(rbd.inverse_dynamics_gradient_bpass_dqd(q, qd, qdd, S, dAv), D[:, nv:], "bpass_dqd", 1e-12)
-        # Minv passes (direct inverse: models without mimic joints)
+        # Minv passes (direct inverse: models without mimic joints): M Z = 1 to n² u max|M| max|Z|, and the
+        # minv operation's M⁻¹ (by M's factorisation on small trees: the same to rounding)
         if not ref.model.has_mimic:
             Mb = rbd.minv_bpass(q)
-            assert_close(rbd.minv_fpass(q, Mb), rbd.minv(q, output_dense=False), "minv_fpass(minv_bpass)", 1e-12)
+            Zu = rbd.minv_fpass(q, Mb)
+            Z = np.triu(Zu) + np.triu(Zu, 1).T
+            M = rbd.crba(q)
+            resid = np.abs(M @ Z - np.eye(nv)).max()
+            bound = 1.1e-16 * nv * nv * np.abs(M).max() * np.abs(Z).max()
+            assert resid < bound, f"minv_fpass(minv_bpass): M Z - 1 = {resid:.3e} > {bound:.3e}"
+            assert_close(Zu, rbd.minv(q, output_dense=False), "minv_fpass(minv_bpass)", 1e-10)
 
 
 def test_fpass_accelerations_include_gravity(ref):

@@ -381,7 +381,7 @@ template <typename S, typename Team>
 RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv,
                       int* ok, bool leave_world = false) {
   if constexpr (!Team::cooperative) {
-    *ok = minv(m, w, q, dense, Minv, leave_world);
+    *ok = minv_passes(m, w, q, dense, Minv, leave_world);
   } else {
     const int nv = m.nv;
     world_placements_team(
@@ -409,12 +409,136 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
   }
 }
 
-// M⁻¹(q), nv x nv row-major. dense: mirror the upper triangle into the lower;
-// otherwise the strict lower triangle is zero. leave_world: the passes in world
-// coordinates, else a tree with a free root in its root's frame (minv_backward_pass,
-// world.hpp). false if M is not PD.
-template <typename S> RBD_FLATTEN
-RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
+// ---- M⁻¹ through M's tree-sparse factorisation (Featherstone, RBDA §6.5), for a small tree
+//
+// M = Lᵀ D L with L unit lower triangular, L_kj ≠ 0 only where j is an ancestor DoF of k (the
+// DoF tree: a joint's DoFs in a chain under its parent's last), computed in place over M's lower
+// triangle from the leaves up in O(Σ_k depth_k²):
+//   for k = nv-1 .. 0:  D_k = H_kk;  for i ∈ anc(k):  a = H_ki / D_k,  H_ij -= a H_kj (j ∈ anc(i) ∪ {i}),  H_ki = a
+// D_k is the joint's articulated inertia sᵀ IA s, the direct passes' D. Then Z = M⁻¹ from
+// L Z = D⁻¹ L⁻ᵀ (unit upper L⁻ᵀ), row by row from the root:
+//   Z_rc = -Σ_{j ∈ anc(r)} L_rj Z_jc  (c < r),   Z_rr = 1/D_r - Σ_{j ∈ anc(r)} L_rj Z_rj
+// where every Z_jc is known by then (j, c < r: row j's own, or row c's mirrored). Columns outside r's
+// root subtree are zero (M is block diagonal over the trees under the world). Each row's off-diagonal
+// part is axpys over contiguous runs. CRBA plus this takes about half the direct passes' time on the
+// iiwa and on branched fixed-base trees (minv_factored_pays).
+
+// lambda[k]: DoF k's parent DoF (-1 under the world); run[k]: the first DoF of the chain of
+// consecutive DoFs that ends at k (lambda[j] = j - 1 for j in (run[k], k]). A DoF's ancestors are then
+// a few contiguous runs: [run[k], k], then [run[e], e] for e = lambda[run[k]], and so on up to the
+// world (one run on a chain like the iiwa's). Bodies in depth-first order (no mimic joints)
+template <typename S> RBD_HD void dof_tree(const ModelView<S>& m, int* lambda, int* run) {
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    const BodyDesc<S>* p = b.parent >= 0 ? &m.body[b.parent] : nullptr;
+    int up = p ? p->v_idx + p->nv - 1 : -1;
+    for (int k = b.v_idx; k < b.v_idx + b.nv; ++k) {
+      lambda[k] = up;
+      run[k] = up >= 0 && up == k - 1 ? run[up] : k;
+      up = k;
+    }
+  }
+}
+
+// f(first, last) for each run of DoF k's ancestors and k itself (dof_tree), from k up
+template <typename F> RBD_HD_INLINE void for_dof_path(const int* lambda, const int* run, int k, F&& f) {
+  for (int e = k; e >= 0; e = lambda[run[e]]) f(run[e], e);
+}
+
+// whether minv takes the factorisation: estimated operations of CRBA, LTDL and the rows against the
+// direct passes', per body and per (DoF, DoF on a root path) pair (docs/performance.md's ninth round)
+template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
+  if (m.has_mimic) return false;
+  long pairs = 0, rows = 0;  // Σ_k depth_k², Σ_r depth_r · (r - start_r)
+  for (int i = 0; i < m.nb; ++i) {
+    long depth = 0, start = m.body[i].v_idx;
+    for (int j = m.body[i].parent; j >= 0; j = m.body[j].parent) depth += m.body[j].nv, start = m.body[j].v_idx;
+    for (int k = 0; k < m.body[i].nv; ++k, ++depth) pairs += depth * depth, rows += depth * (m.body[i].v_idx + k - start);
+  }
+  return 2 * pairs + rows <= 200L * m.nv;
+}
+
+// Minv = M⁻¹ by crba and the factorisation above; the upper triangle, and the lower mirrored when
+// dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
+// (composites) and w.F as crba does, not minv_backward_pass's placements. false if some D_k is at the
+// rounding level of its terms or below (pivot_positive: M not positive definite)
+template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
+                                                S* Minv) {
+  const int n = m.nv;
+  S* H = w.dense2;
+  int* lambda = w.so_i;
+  int* run = w.so_i + n;
+  crba(m, w, q, H);
+  dof_tree(m, lambda, run);
+  for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
+  // each pivot's scale, then 1/D_k: Σ_r Ic_rr s_r² of the joint's column s against its composite
+  // inertia, the size of the terms of M_kk = sᵀ Ic s (so that a rod turned about its own axis, whose
+  // M_kk is rounding noise, is singular as in the direct passes)
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    const Inertia<S>& Ic = w.Ic[i];
+    for (int l = 0; l < b.nv; ++l) {
+      const Motion<S> s = joint_subspace_col(b, l);
+      Minv[(b.v_idx + l) * (n + 1)] = Ic.m * dot(s.lin, s.lin) + Ic.I(0, 0) * (s.ang.x * s.ang.x) +
+                                      Ic.I(1, 1) * (s.ang.y * s.ang.y) + Ic.I(2, 2) * (s.ang.z * s.ang.z);
+    }
+  }
+  // LTDL, leaves first; each ancestor i of k (nearest first) takes H_i· -= a H_k· over its own path
+  for (int k = n - 1; k >= 0; --k) {
+    const S dk = H[k * n + k];
+    if (!pivot_positive(dk, Minv[k * n + k])) return false;
+    const S dinv = S(1) / dk;
+    Minv[k * n + k] = dinv;
+    S* RBD_RESTRICT Hk = H + k * n;
+    if (lambda[k] < 0) continue;
+    for_dof_path(lambda, run, lambda[k], [&](int i0, int i1) {
+      for (int i = i1; i >= i0; --i) {
+        const S a = Hk[i] * dinv;
+        S* RBD_RESTRICT Hi = H + i * n;
+        for_dof_path(lambda, run, i, [&](int j0, int j1) {
+          for (int j = j0; j <= j1; ++j) Hi[j] -= a * Hk[j];
+        });
+        Hk[i] = a;
+      }
+    });
+  }
+  // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
+  for (int r = 0; r < n; ++r) {
+    int c0 = r;
+    for_dof_path(lambda, run, r, [&](int j0, int) { c0 = j0; });
+    S* RBD_RESTRICT zr = Minv + r * n;
+    const S* Hr = H + r * n;
+    if (lambda[r] >= 0)
+      minv_columns<S>(c0, r, [&](int c, auto lane) {
+        using T = decltype(lane);
+        T acc = T(S(0) * lanes_load<T>(zr + c));
+        for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
+          for (int j = j1; j >= j0; --j) acc = acc - Hr[j] * lanes_load<T>(Minv + j * n + c);
+        });
+        lanes_store(zr + c, acc);
+      });
+    S d = zr[r];
+    if (lambda[r] >= 0)
+      for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
+        for (int j = j1; j >= j0; --j) d -= Hr[j] * zr[j];
+      });
+    zr[r] = d;
+    for (int c = c0; c < r; ++c) Minv[c * n + r] = zr[c];
+  }
+  if (!dense)
+    for (int r = 1; r < n; ++r)
+      for (int c = 0; c < r; ++c) Minv[r * n + c] = S(0);
+  return true;
+}
+
+// M⁻¹(q) by the direct passes, nv x nv row-major. dense: mirror the upper triangle into the lower;
+// otherwise the strict lower triangle is zero. leave_world: the passes in world coordinates, else a
+// tree with a free root in its root's frame (minv_backward_pass, world.hpp); they leave their
+// placements and inertias in w for the derivative passes (forward_dynamics, aba_derivatives). false if
+// M is not PD.
+template <typename S>
+RBD_HD bool minv_passes(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv,
+                        bool leave_world = false) {
   const int nv = m.nv;
   if (m.has_mimic) {
     S* M = w.dense;
@@ -427,6 +551,16 @@ RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
   for (int r = 1; r < nv; ++r)
     for (int c = 0; c < r; ++c) Minv[r * nv + c] = dense ? Minv[c * nv + r] : S(0);
   return true;
+}
+
+// M⁻¹(q), nv x nv row-major (the minv operation): by M's factorisation where that pays
+// (minv_factored_pays: small and branched trees), else by the direct passes (minv_passes; leave_world
+// as there). dense: mirror the upper triangle into the lower; otherwise the strict lower triangle is
+// zero. Either way the same matrix to rounding. false if M is not PD.
+template <typename S> RBD_FLATTEN
+RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
+  if (minv_factored_pays(m)) return minv_factored(m, w, q, dense, Minv);
+  return minv_passes(m, w, q, dense, Minv, leave_world);
 }
 
 // qdd = M⁻¹ (tau - c(q, qd, f_ext)): forward dynamics through the inverse.
@@ -447,7 +581,7 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
     cholesky_solve(Mi, nv, qdd);
     return true;
   }
-  if (!minv(m, w, q, true, Mi, leave_world)) return false;
+  if (!minv_passes(m, w, q, true, Mi, leave_world)) return false;
   matvec(InlineTeam{}, Mi, r, qdd, nv, nv);
   return true;
 }
