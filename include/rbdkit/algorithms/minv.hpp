@@ -445,6 +445,40 @@ template <typename F> RBD_HD_INLINE void for_dof_path(const int* lambda, const i
   for (int e = k; e >= 0; e = lambda[run[e]]) f(run[e], e);
 }
 
+// zr[c] = -Σ_j Hr[j] Z[j·n + c] for c in [c0, c1), over the DoFs j that ancestors(f) visits (f(j) for
+// each, nearest first): a row of M⁻¹ below its diagonal from its ancestors' rows. In host code that
+// nvcc does not see, for double and float, four vectors of columns (RBD_HOST_VECTOR_BYTES each) per
+// walk over the ancestors, then one, then single columns; each entry summed in the same order
+template <typename S, typename Ancestors>
+RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n, int c0, int c1, S* RBD_RESTRICT zr,
+                                     const Ancestors& ancestors) {
+  int c = c0;
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
+  if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
+    typedef S V __attribute__((vector_size(RBD_HOST_VECTOR_BYTES)));
+    constexpr int L = RBD_HOST_VECTOR_BYTES / sizeof(S);
+    for (; c + 4 * L <= c1; c += 4 * L) {
+      V acc[4] = {V{}, V{}, V{}, V{}};
+      ancestors([&](int j) {
+        const S l = Hr[j];
+        for (int k = 0; k < 4; ++k) acc[k] -= l * lanes_load<V>(Z + j * n + c + k * L);
+      });
+      for (int k = 0; k < 4; ++k) lanes_store(zr + c + k * L, acc[k]);
+    }
+    for (; c + L <= c1; c += L) {
+      V acc = V{};
+      ancestors([&](int j) { acc -= Hr[j] * lanes_load<V>(Z + j * n + c); });
+      lanes_store(zr + c, acc);
+    }
+  }
+#endif
+  for (; c < c1; ++c) {
+    S acc = S(0);
+    ancestors([&](int j) { acc -= Hr[j] * Z[j * n + c]; });
+    zr[c] = acc;
+  }
+}
+
 // whether minv takes the factorisation: estimated operations of CRBA, LTDL and the rows against the
 // direct passes', per body and per (DoF, DoF on a root path) pair (docs/performance.md's ninth round)
 template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
@@ -509,13 +543,10 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
     S* RBD_RESTRICT zr = Minv + r * n;
     const S* Hr = H + r * n;
     if (lambda[r] >= 0)
-      minv_columns<S>(c0, r, [&](int c, auto lane) {
-        using T = decltype(lane);
-        T acc = T(S(0) * lanes_load<T>(zr + c));
+      minv_factored_row(Hr, Minv, n, c0, r, zr, [&](auto&& f) {
         for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
-          for (int j = j1; j >= j0; --j) acc = acc - Hr[j] * lanes_load<T>(Minv + j * n + c);
+          for (int j = j1; j >= j0; --j) f(j);
         });
-        lanes_store(zr + c, acc);
       });
     S d = zr[r];
     if (lambda[r] >= 0)
