@@ -72,7 +72,7 @@ __global__ void stages(ModelView<S> call_model, const S* q, const S* qd, const S
         case 0: for (int i = 0; i < m.nb; ++i) world_placement(m, w, q, i); break;
         case 1: rnea(m, w, q, qd, qd, static_cast<const S*>(nullptr), gravity, out); break;
         case 2: crba(m, w, q, D1); break;
-        case 3: minv(m, w, q, true, w.dense); break;
+        case 3: minv_passes(m, w, q, true, w.dense); break;
         case 4: aba(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); break;
         case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, false, true); break;
         case 6: rnea_derivatives_backward_pass(m, w, D1, D2, static_cast<S*>(nullptr)); break;

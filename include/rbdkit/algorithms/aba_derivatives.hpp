@@ -13,7 +13,7 @@
 
 namespace rbd {
 
-// w.dense <- M⁻¹ (direct inverse), or the Cholesky factor of M for mimic
+// w.dense <- M⁻¹ (minv), or the Cholesky factor of M for mimic
 // models; false if M is not PD
 template <typename S> RBD_HD bool prepare_minv(const ModelView<S>& m, Workspace<S>& w, const S* q) {
   if (m.has_mimic) {
@@ -78,7 +78,7 @@ template <typename S> RBD_HD void neg_minv_times_tree_sparse(const ModelView<S>&
     for (int c = 0; c < nv; ++c) D[r * nv + c] = -T[c * nv + r];
 }
 
-// Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the direct inverse it
+// Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the inverse it
 // left (the product -M⁻¹ (-1) would cost nv³), or the mimic path's solves
 template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>& w, S* Minv) {
   const int nv = m.nv;
@@ -178,8 +178,8 @@ RBD_HD void external_force_map(const ModelView<S>& m, Workspace<S>& w, const S* 
 
 // body Jacobians in body coordinates, transposed and negated:
 // dtau_dfext (nb x nv x 6): [b][r][c] = ∂tau_r/∂f_ext_b[c] = -(J_b)[c][r];
-// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world (M⁻¹'s, in its
-// reference frame: world.hpp)
+// then dqdd_dfext (nb x nv x 6) = M⁻¹ J_bᵀ. writes w.X_parent, w.X_world, w.S_world (by
+// external_force_map; then M⁻¹'s, where minv takes the direct passes)
 template <typename S>
 RBD_HD bool fext_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, S* dtau_dfext, S* dqdd_dfext) {
   const int nv = m.nv, nb = m.nb;

@@ -1,8 +1,12 @@
-// rbdkit/algorithms/minv.hpp — the inverse mass matrix M⁻¹(q), computed
-// directly in O(n²) by running the articulated-body recursion on the unit
-// torque columns (Carpentier, "Analytical inverse of the joint space inertia
-// matrix", 2018), never by factorising M.
+// rbdkit/algorithms/minv.hpp — the inverse mass matrix M⁻¹(q), two ways:
+//   - minv_passes: directly in O(n²), by running the articulated-body recursion
+//     on the unit torque columns (Carpentier, "Analytical inverse of the joint
+//     space inertia matrix", 2018), below;
+//   - minv_factored: CRBA, then M's tree-sparse factorisation (further down),
+//     which costs less on small and branched trees.
+// minv, the operation, picks one per model (minv_factored_pays).
 //
+// The direct passes:
 //   backward:  F_i = ∂pA_i/∂tau              (subtree columns)
 //              Minv_i· = D⁻¹ (e_i - Sᵀ F_i)     (rows of joint i, subtree columns)
 //              F_λ += F_i + U_i Minv_i·
@@ -415,13 +419,15 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 // DoF tree: a joint's DoFs in a chain under its parent's last), computed in place over M's lower
 // triangle from the leaves up in O(Σ_k depth_k²):
 //   for k = nv-1 .. 0:  D_k = H_kk;  for i ∈ anc(k):  a = H_ki / D_k,  H_ij -= a H_kj (j ∈ anc(i) ∪ {i}),  H_ki = a
-// D_k is the joint's articulated inertia sᵀ IA s, the direct passes' D. Then Z = M⁻¹ from
+// For a one-DoF joint D_k is its articulated inertia sᵀ IA s, the direct passes' D (for a multi-DoF
+// joint, the pivots of the passes' D block). Then Z = M⁻¹ from
 // L Z = D⁻¹ L⁻ᵀ (unit upper L⁻ᵀ), row by row from the root:
 //   Z_rc = -Σ_{j ∈ anc(r)} L_rj Z_jc  (c < r),   Z_rr = 1/D_r - Σ_{j ∈ anc(r)} L_rj Z_rj
 // where every Z_jc is known by then (j, c < r: row j's own, or row c's mirrored). Columns outside r's
 // root subtree are zero (M is block diagonal over the trees under the world). Each row's off-diagonal
-// part is axpys over contiguous runs. CRBA plus this takes about half the direct passes' time on the
-// iiwa and on branched fixed-base trees (minv_factored_pays).
+// part is sums over contiguous runs. CRBA plus this took 0.5-0.7 of the direct passes' time on the
+// iiwa, HyQ and fixed Atlas, 0.9 on floating HyQ and iiwa, 1.1 on floating Atlas (minv_factored_pays;
+// docs/performance.md's ninth round).
 
 // lambda[k]: DoF k's parent DoF (-1 under the world); run[k]: the first DoF of the chain of
 // consecutive DoFs that ends at k (lambda[j] = j - 1 for j in (run[k], k]). A DoF's ancestors are then
@@ -479,23 +485,25 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
   }
 }
 
-// whether minv takes the factorisation: estimated operations of CRBA, LTDL and the rows against the
-// direct passes', per body and per (DoF, DoF on a root path) pair (docs/performance.md's ninth round)
+// whether minv takes the factorisation: Σ_i nv_i · nv_subtree_i, the (ancestor DoF, DoF) pairs of the
+// tree (L's nonzeros below the diagonal, plus the joints' own), at most 9 per DoF. Measured (-march=native
+// harness, factored against the passes): iiwa 4 per DoF (375 against 582 ns), fixed HyQ 2 (432 against
+// 972), fixed Atlas 5 (1960 against 2873), floating HyQ 7.3 (1110 against 1256), floating iiwa 8.2 (835
+// against 884), floating Atlas 10.2 (3538 against 3250). O(nb): it runs on every call
 template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
   if (m.has_mimic) return false;
-  long pairs = 0, rows = 0;  // Σ_k depth_k², Σ_r depth_r · (r - start_r)
-  for (int i = 0; i < m.nb; ++i) {
-    long depth = 0, start = m.body[i].v_idx;
-    for (int j = m.body[i].parent; j >= 0; j = m.body[j].parent) depth += m.body[j].nv, start = m.body[j].v_idx;
-    for (int k = 0; k < m.body[i].nv; ++k, ++depth) pairs += depth * depth, rows += depth * (m.body[i].v_idx + k - start);
-  }
-  return 2 * pairs + rows <= 200L * m.nv;
+  long pairs = 0;
+  for (int i = 0; i < m.nb; ++i) pairs += static_cast<long>(m.body[i].nv) * m.body[i].nv_subtree;
+  return pairs <= 9L * m.nv;
 }
 
 // Minv = M⁻¹ by crba and the factorisation above; the upper triangle, and the lower mirrored when
 // dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
 // (composites) and w.F as crba does, not minv_backward_pass's placements. false if some D_k is at the
-// rounding level of its terms or below (pivot_positive: M not positive definite)
+// rounding level of its terms or below (pivot_positive), the terms' size taken from the composite
+// inertia: stricter than the passes' check on the articulated inertia (a light link under a coaxial
+// joint carrying a heavy one has D_k far below sᵀ Ic s). minv then runs the passes, whose verdict
+// stands
 template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
                                                 S* Minv) {
   const int n = m.nv;
@@ -585,12 +593,13 @@ RBD_HD bool minv_passes(const ModelView<S>& m, Workspace<S>& w, const S* q, bool
 }
 
 // M⁻¹(q), nv x nv row-major (the minv operation): by M's factorisation where that pays
-// (minv_factored_pays: small and branched trees), else by the direct passes (minv_passes; leave_world
-// as there). dense: mirror the upper triangle into the lower; otherwise the strict lower triangle is
-// zero. Either way the same matrix to rounding. false if M is not PD.
+// (minv_factored_pays: small and branched trees), else, or where the factorisation's stricter pivot
+// check fails, by the direct passes (minv_passes; leave_world as there). dense: mirror the upper
+// triangle into the lower; otherwise the strict lower triangle is zero. Either way the same matrix to
+// rounding. false if M is not PD (the passes' check).
 template <typename S> RBD_FLATTEN
 RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense, S* Minv, bool leave_world = false) {
-  if (minv_factored_pays(m)) return minv_factored(m, w, q, dense, Minv);
+  if (minv_factored_pays(m) && minv_factored(m, w, q, dense, Minv)) return true;
   return minv_passes(m, w, q, dense, Minv, leave_world);
 }
 

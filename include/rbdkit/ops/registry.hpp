@@ -117,8 +117,9 @@ struct Crba {
 struct Minv {
   static constexpr OpSpec spec = {
       "minv", "minv", "minv",
-      "M⁻¹ (nv, nv) computed directly in O(n²) (not by factorising M). output_dense=False returns the upper "
-      "triangle (zeros below).",
+      "M⁻¹ (nv, nv): directly in O(n²), or on small and branched trees by CRBA and M's tree-sparse "
+      "factorisation, whichever the model makes cheaper. output_dense=False returns the upper triangle "
+      "(zeros below).",
       2, {array("q", shape(kNq), kConfiguration), param("output_dense", kFlag, 1)},
       1, {{"Minv", shape(kNv, kNv)}}, 0b1, 0, kFull, kNoScratch, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
