@@ -425,7 +425,7 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 //   Z_rc = -Σ_{j ∈ anc(r)} L_rj Z_jc  (c < r),   Z_rr = 1/D_r - Σ_{j ∈ anc(r)} L_rj Z_rj
 // where every Z_jc is known by then (j, c < r: row j's own, or row c's mirrored). Columns outside r's
 // root subtree are zero (M is block diagonal over the trees under the world). Each row's off-diagonal
-// part is sums over contiguous runs. CRBA plus this took 0.5-0.7 of the direct passes' time on the
+// part is sums over contiguous runs. CRBA plus this took 0.45-0.7 of the direct passes' time on the
 // iiwa, HyQ and fixed Atlas, 0.9 on floating HyQ and iiwa, 1.1 on floating Atlas (minv_factored_pays;
 // docs/performance.md's ninth round).
 
@@ -497,8 +497,8 @@ template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
   return pairs <= 9L * m.nv;
 }
 
-// Minv = M⁻¹ by crba and the factorisation above; the upper triangle, and the lower mirrored when
-// dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
+// Minv = M⁻¹ by crba and the factorisation above, for a model without mimic joints (bodies depth-first:
+// minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
 // (composites) and w.F as crba does, not minv_backward_pass's placements. false if some D_k is at the
 // rounding level of its terms or below (pivot_positive), the terms' size taken from the composite
 // inertia: stricter than the passes' check on the articulated inertia (a light link under a coaxial

@@ -55,8 +55,6 @@
 // registers; a loop over a view's run-time sizes is left as it is. The host compilers ignore it
 #if defined(__CUDACC__)
 #define RBD_UNROLL _Pragma("unroll")
-#elif defined(RBDKIT_HOST_UNROLL_ALL)
-#define RBD_UNROLL _Pragma("GCC unroll 64")
 #else
 #define RBD_UNROLL
 #endif
