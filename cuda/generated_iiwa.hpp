@@ -17,6 +17,7 @@
 #include "rbdkit/algorithms/regressor.hpp"
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/algorithms/rnea_derivatives.hpp"
+#include "rbdkit/codegen/robot_model.hpp"
 #include "rbdkit/plant/integrators.hpp"
 
 namespace rbdkit_generated {
@@ -136,15 +137,15 @@ struct Iiwa {
   }
 
  private:
-  // one call's model view and workspace, on the stack, not zero-filled: these algorithms write every
-  // array before they read it (tests/python/test_generate.py runs them under valgrind)
+  // one call's model view and workspace. The workspace is on the stack, not zero-filled: these
+  // algorithms write every array before they read it (tests/python/test_generate.py runs them under
+  // valgrind). The bodies are the robot's constant table (rbdkit/codegen/robot_model.hpp: constexpr
+  // in host code, __constant__ in device code), not copied per call
   template <class S, bool Full> struct Call {
-    rbd::BodyDesc<S> body[nb];
     alignas(16) unsigned char buffer[workspace_bytes<S>(Full)];
     rbd::ModelView<S> m;
     rbd::Workspace<S> w;
-    RBD_HD Call() : m{nb, nq, nv, has_mimic, body} {
-      bodies(body);
+    RBD_HD Call() : m(rbd::instance::RobotModel<Iiwa>::view(rbd::ModelView<S>{})) {
       w = rbd::carve_workspace<S>(buffer, nb, nv, Full ? rbd::kFullWorkspace : rbd::kLinearWorkspace);
     }
   };
