@@ -287,11 +287,11 @@ TEST_P(Derivatives, ForwardDynamicsGradientsAccelerationIsAbas) {
 }
 
 // minv's direct passes (minv_passes) compute a tree with a free root in the root's own frame (world.hpp's
-// reference frame; its S the identity) unless asked for world coordinates. On every floating model: M M⁻¹ = 1 in that frame with
-// the base near the origin and far from it, to n u max|M| max|M⁻¹| (u = 1.1e-16, the unit roundoff),
-// which the world frame's M⁻¹ misses 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on Atlas, against
-// 5e-14 and 2e-13 here); the two frames agree near the origin; and the column path (the team kernels')
-// agrees with the passes in the root frame
+// reference frame; its S the identity) unless asked for world coordinates. On every floating model:
+// M M⁻¹ = 1 in that frame with the base near the origin and far from it, to n u max|M| max|M⁻¹| (u = 1.1e-16,
+// the unit roundoff), which the world frame's M⁻¹ misses 100 m out (M M⁻¹ - 1 at 2e-9 on iiwa, 1.5e-8 on
+// Atlas, against 5e-14 and 2e-13 here); the two frames agree near the origin; and the column path (the
+// team kernels') agrees with the passes in the root frame
 TEST(RootFrame, MinvIsTheInverse) {
   for (const ModelCase& c : all_cases()) {
     const Model m = Model::from_urdf_file(c.path, c.floating);
@@ -337,9 +337,9 @@ TEST(RootFrame, MinvIsTheInverse) {
 
 // With a free root, M⁻¹ (the direct passes), ∇ID and ∇FD are computed in the root's frame, where the
 // base's position never enters: moving the base 100 m changes no bit of them (in world coordinates it
-// changed them by 1e-10 to 4e-9 relative). Near the origin ∇ID and M⁻¹ agree with the world frame's passes to 1e-11 (the world
-// frame's own rounding, 3e-12 seen on floating Atlas); a mimic model (M⁻¹ from the world-frame CRBA)
-// only that
+// changed them by 1e-10 to 4e-9 relative). Near the origin ∇ID and M⁻¹ agree with the world frame's
+// passes to 1e-11 (the world frame's own rounding, 3e-12 seen on floating Atlas); a mimic model (M⁻¹ from
+// the world-frame CRBA) only that
 TEST(RootFrame, BasePositionDoesNotEnter) {
   for (const ModelCase& c : all_cases()) {
     if (!c.floating) continue;
@@ -384,12 +384,12 @@ TEST(RootFrame, BasePositionDoesNotEnter) {
   }
 }
 
-// M⁻¹'s serial passes (minv_passes: F and P as 6 x nv, a one-DoF body's columns as row streams, a free root's as one
-// 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path the team
-// kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and in float
-// (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the registry's
-// float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there the
-// double result is checked against M M⁻¹ = 1
+// M⁻¹'s serial passes (minv_passes: F and P as 6 x nv, a one-DoF body's columns as row streams, a free
+// root's as one 6 x 6 on its rows; vector lanes in double and float) against the column-at-a-time path
+// the team kernels run (minv_column, nv x 6 per body, one column's scalar loop), in double to 1e-13; and
+// in float (four lanes, the tails when nv is not a multiple of four) against double to 2e-3, the
+// registry's float32 bound for M⁻¹. A model on the general path takes M's Cholesky inverse instead; there
+// the double result is checked against M M⁻¹ = 1
 TEST_P(Derivatives, MinvPassesEqualTheColumnPath) {
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
   WorkspaceBuffer buf(m);
