@@ -454,7 +454,7 @@ template <typename F> RBD_HD_INLINE void for_dof_path(const int* lambda, const i
 // zr[c] = -Σ_j Hr[j] Z[j·n + c] for c in [c0, c1), over the DoFs j that ancestors(f) visits (f(j) for
 // each, nearest first): a row of M⁻¹ below its diagonal from its ancestors' rows. In host code that
 // nvcc does not see, for double and float, four vectors of columns (RBD_HOST_VECTOR_BYTES each) per
-// walk over the ancestors, then one, then single columns; each entry summed in the same order
+// walk over the ancestors; the rest by minv_columns. Each entry summed in the same order
 template <typename S, typename Ancestors>
 RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n, int c0, int c1, S* RBD_RESTRICT zr,
                                      const Ancestors& ancestors) {
@@ -471,18 +471,14 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
       });
       for (int k = 0; k < 4; ++k) lanes_store(zr + c + k * L, acc[k]);
     }
-    for (; c + L <= c1; c += L) {
-      V acc = V{};
-      ancestors([&](int j) { acc -= Hr[j] * lanes_load<V>(Z + j * n + c); });
-      lanes_store(zr + c, acc);
-    }
   }
 #endif
-  for (; c < c1; ++c) {
-    S acc = S(0);
-    ancestors([&](int j) { acc -= Hr[j] * Z[j * n + c]; });
-    zr[c] = acc;
-  }
+  minv_columns<S>(c, c1, [&](int cc, auto lane) {
+    using T = decltype(lane);
+    T acc = lane;  // (zero)
+    ancestors([&](int j) { acc = acc - Hr[j] * lanes_load<T>(Z + j * n + cc); });
+    lanes_store(zr + cc, acc);
+  });
 }
 
 // whether minv takes the factorisation: Σ_i nv_i · nv_subtree_i, the (ancestor DoF, DoF) pairs of the
@@ -532,7 +528,6 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
     const S dinv = S(1) / dk;
     Minv[k * n + k] = dinv;
     S* RBD_RESTRICT Hk = H + k * n;
-    if (lambda[k] < 0) continue;
     for_dof_path(lambda, run, lambda[k], [&](int i0, int i1) {
       for (int i = i1; i >= i0; --i) {
         const S a = Hk[i] * dinv;
@@ -550,17 +545,14 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
     for_dof_path(lambda, run, r, [&](int j0, int) { c0 = j0; });
     S* RBD_RESTRICT zr = Minv + r * n;
     const S* Hr = H + r * n;
-    if (lambda[r] >= 0)
-      minv_factored_row(Hr, Minv, n, c0, r, zr, [&](auto&& f) {
-        for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
-          for (int j = j1; j >= j0; --j) f(j);
-        });
-      });
-    S d = zr[r];
-    if (lambda[r] >= 0)
+    auto ancestors = [&](auto&& f) {  // f(j) for r's ancestor DoFs, nearest first (none at a root)
       for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
-        for (int j = j1; j >= j0; --j) d -= Hr[j] * zr[j];
+        for (int j = j1; j >= j0; --j) f(j);
       });
+    };
+    minv_factored_row(Hr, Minv, n, c0, r, zr, ancestors);
+    S d = zr[r];
+    ancestors([&](int j) { d -= Hr[j] * zr[j]; });
     zr[r] = d;
     for (int c = c0; c < r; ++c) Minv[c * n + r] = zr[c];
   }
