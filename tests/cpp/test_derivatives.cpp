@@ -111,8 +111,9 @@ TEST_P(Derivatives, MatchFiniteDifferences) {
   EXPECT_LT(max_rel_err(dqdd_df, fdA), 1e-6);
 }
 
-// -M⁻¹ ∂ID through the tree's sparsity (neg_minv_times_tree_sparse) is the dense product's number,
-// bit for bit: each entry the same sum in the same order without its zero terms. It is taken on the
+// -M⁻¹ ∂ID through the tree's sparsity (neg_minv_times_tree_sparse, both products over the union of
+// their columns' rows) is the dense product's number, bit for bit: each entry the same sum in the same
+// order without its zero terms. It is taken on the
 // branched robots and not on a chain, where the dense blocked product is faster
 TEST_P(Derivatives, TreeSparseProductIsTheDenseProduct) {
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
@@ -141,9 +142,10 @@ TEST_P(Derivatives, TreeSparseProductIsTheDenseProduct) {
   EXPECT_EQ(std::memcmp(A.data(), want_q.data(), A.size() * sizeof(double)), 0);
   EXPECT_EQ(std::memcmp(B.data(), want_v.data(), B.size() * sizeof(double)), 0);
   // the sparse pass on its own, whatever the rule picks
-  std::vector<double> S = dq;
-  neg_minv_times_tree_sparse(mv, w, S.data());
-  EXPECT_EQ(std::memcmp(S.data(), want_q.data(), S.size() * sizeof(double)), 0);
+  std::vector<double> Sq = dq, Sv = dv;
+  neg_minv_times_tree_sparse(mv, w, Sq.data(), Sv.data());
+  EXPECT_EQ(std::memcmp(Sq.data(), want_q.data(), Sq.size() * sizeof(double)), 0);
+  EXPECT_EQ(std::memcmp(Sv.data(), want_v.data(), Sv.size() * sizeof(double)), 0);
   const std::string robot = GetParam().path.substr(GetParam().path.rfind('/') + 1);
   if (robot == "iiwa.urdf") EXPECT_FALSE(tree_sparse_product_pays(mv));
   if (robot == "hyq.urdf" || robot == "atlas.urdf") EXPECT_TRUE(tree_sparse_product_pays(mv));

@@ -43,16 +43,20 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
   neg_matmul(Mi, Dc, nv, cols, D);
 }
 
-// D (nv x nv, row-major) <- -M⁻¹ D, after prepare_minv, for D = ∂ID/∂q or ∂ID/∂qd of a model without
-// mimic joints: ∂tau_l/∂x_c vanishes unless l and c lie on one root path (rnea_derivatives leaves those
-// entries exact zeros), about half of a floating humanoid's entries and three quarters of a fixed
-// quadruped's. M⁻¹ is symmetric (w.dense, mirrored), so column c of M⁻¹ D is Σ_l D_lc M⁻¹_l· over
-// the rows l with D_lc ≠ 0, contiguous rows of M⁻¹ (scaled_row_sum). Each entry is neg_matmul's sum
-// in its order without the zero terms: the same number. T = (M⁻¹ D)ᵀ goes to w.dense2, then D <- -Tᵀ.
-// Uses w.so_i (nv ints: the rows of one column). aba_derivatives takes it when at most 2/3 of D can
-// be nonzero (a chain like the iiwa's is dense, and apply_neg_minv's blocked product is then faster),
+// Dq, Dv (nv x nv each, row-major) <- -M⁻¹ Dq, -M⁻¹ Dv, after prepare_minv, for Dq = ∂ID/∂q and
+// Dv = ∂ID/∂qd of a model without mimic joints: ∂tau_l/∂x_c vanishes unless l and c lie on one root
+// path (rnea_derivatives leaves those entries exact zeros), about half of a floating humanoid's
+// entries and three quarters of a fixed quadruped's. M⁻¹ is symmetric (w.dense, mirrored), so column
+// c of M⁻¹ D is Σ_l D_lc M⁻¹_l· over the rows l with D_lc ≠ 0, contiguous rows of M⁻¹. Column c of
+// both products runs at once, over the rows where either is nonzero (scaled_row_sums: each row of
+// M⁻¹ loaded once for both). Each entry is neg_matmul's sum in its order without zero terms: the
+// same number. Tq = (M⁻¹ Dq)ᵀ goes to w.dense2, Tv to w.so_dense's third block and the gathered
+// entries to its fourth (fdsva_so writes those only after aba_derivatives), then D <- -Tᵀ. Uses
+// w.so_i (nv ints: the rows of one column). aba_derivatives takes it when at most 2/3 of D can be
+// nonzero (a chain like the iiwa's is dense, and apply_neg_minv's blocked product is then faster),
 // in double and float only (a dual number's zero value may carry a derivative, a SIMD pack's zero is
-// per lane).
+// per lane). Out of line on the host: inlined into aba_derivatives's flattened body, the same
+// products ran 2-3 % of ∇FD slower (floating HyQ and Atlas, a compiled instance).
 template <typename S> RBD_HD bool tree_sparse_product_pays(const ModelView<S>& m) {
   if (m.has_mimic) return false;
   long nnz = 0;  // Σ over DoFs c of the DoFs on c's root paths: its ancestors' and its subtree's
@@ -63,19 +67,26 @@ template <typename S> RBD_HD bool tree_sparse_product_pays(const ModelView<S>& m
   }
   return 3 * nnz <= 2L * m.nv * m.nv;
 }
-template <typename S> RBD_HD void neg_minv_times_tree_sparse(const ModelView<S>& m, Workspace<S>& w, S* D) {
+template <typename S>
+RBD_NOINLINE RBD_FLATTEN RBD_HD void neg_minv_times_tree_sparse(const ModelView<S>& m, Workspace<S>& w, S* Dq, S* Dv) {
   const int nv = m.nv;
+  const long nn = static_cast<long>(nv) * nv;
   const S* Mi = w.dense;
-  S* T = w.dense2;
+  S* Tq = w.dense2;
+  S* Tv = w.so_dense + 2 * nn;
+  S* a = w.so_dense + 3 * nn;  // column c's entries in the listed rows (nv each)
+  S* b = a + nv;
   int* rows = w.so_i;
   for (int c = 0; c < nv; ++c) {
     int n = 0;
-    for (int l = 0; l < nv; ++l)
-      if (D[l * nv + c] != S(0)) rows[n++] = l;
-    scaled_row_sum(Mi, D + c, nv, nv, rows, n, T + c * nv);
+    for (int l = 0; l < nv; ++l) {
+      const S x = Dq[l * nv + c], y = Dv[l * nv + c];
+      if (x != S(0) || y != S(0)) rows[n] = l, a[n] = x, b[n] = y, ++n;
+    }
+    scaled_row_sums(Mi, a, b, nv, rows, n, Tq + c * nv, Tv + c * nv);
   }
   for (int r = 0; r < nv; ++r)
-    for (int c = 0; c < nv; ++c) D[r * nv + c] = -T[c * nv + r];
+    for (int c = 0; c < nv; ++c) Dq[r * nv + c] = -Tq[c * nv + r], Dv[r * nv + c] = -Tv[c * nv + r];
 }
 
 // Minv (nv x nv) <- M⁻¹, after prepare_minv: a copy of the inverse it
@@ -105,8 +116,7 @@ RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, 
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     if (tree_sparse_product_pays(m)) {
-      neg_minv_times_tree_sparse(m, w, dqdd_dq);
-      neg_minv_times_tree_sparse(m, w, dqdd_dqd);
+      neg_minv_times_tree_sparse(m, w, dqdd_dq, dqdd_dqd);
       return true;
     }
   }

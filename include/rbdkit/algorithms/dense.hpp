@@ -161,70 +161,75 @@ template <typename S> RBD_HD void neg_matmul(const S* RBD_RESTRICT A, const S* R
   neg_matmul_plain(A, B, n, cols, out);
 }
 
-// out (n) = Σ_j a[rows[j]·lda] B[rows[j]·n + r] for r < n, over the `count` listed rows of B
-// (n x n, row-major) in the list's order, i.e. (Bᵀ a)_r: a column of Bᵀ A (of B A for a
-// symmetric B, as M⁻¹) when only the rows listed meet a nonzero of A's column a (stride lda).
-// Each entry is summed from 0 in that order, so with the zero terms of a dense product left out
-// it is that product's number. Host double and float: up to 8 vectors of 16 bytes per register
-// block (8, 4, 2, 1), as neg_matmul, after blocks of 4, 2 and 1 vectors of 32 bytes where the
-// compiler targets AVX (RBD_HOST_VECTOR_BYTES); the plain loop for the tail; elsewhere the plain
-// loop (from entry r0).
+// two columns of Bᵀ A (of B A for a symmetric B, as M⁻¹) whose nonzeros lie in the same `count`
+// listed rows of B (n x n, row-major): out_a[r] = Σ_j a[j] B[rows[j]·n + r] and out_b[r] likewise
+// with b, for r < n, where a[j] and b[j] are the two columns' entries in row rows[j], gathered.
+// Each entry is summed from 0 in the list's order, so with the zero terms of a dense product left
+// out it is that product's number. Each row of B is loaded once for both columns. Host double and
+// float: register blocks of 4, 2 and 1 vectors per column (RBD_HOST_VECTOR_BYTES: 32 bytes where
+// the compiler targets AVX, else 16), then one 16-byte vector, then the plain loop for the tail;
+// elsewhere the plain loop (from entry r0).
 template <typename S>
-RBD_HD void scaled_row_sum_plain(const S* B, const S* a, int lda, int n, const int* rows, int count, S* out,
-                                 int r0 = 0) {
+RBD_HD void scaled_row_sums_plain(const S* B, const S* a, const S* b, int n, const int* rows, int count, S* out_a,
+                                  S* out_b, int r0 = 0) {
   for (int r = r0; r < n; ++r) {
-    S acc = S(0);
-    for (int j = 0; j < count; ++j) acc += a[rows[j] * lda] * B[rows[j] * n + r];
-    out[r] = acc;
+    S sa = S(0), sb = S(0);
+    for (int j = 0; j < count; ++j) {
+      const S x = B[rows[j] * n + r];
+      sa += a[j] * x;
+      sb += b[j] * x;
+    }
+    out_a[r] = sa;
+    out_b[r] = sb;
   }
 }
 
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
 namespace detail {
-// out[r, r + NV·L) of scaled_row_sum, NV vectors of L lanes
-template <typename S, int NV, int Bytes = 16>
-inline void scaled_row_sum_block(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int lda, int n,
-                                 const int* RBD_RESTRICT rows, int count, int r, S* RBD_RESTRICT out) {
+// entries [r, r + NV·L) of scaled_row_sums, NV vectors of L lanes per column
+template <typename S, int NV, int Bytes>
+inline void scaled_row_sums_block(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, const S* RBD_RESTRICT b,
+                                  int n, const int* RBD_RESTRICT rows, int count, int r, S* RBD_RESTRICT out_a,
+                                  S* RBD_RESTRICT out_b) {
   typedef S V __attribute__((vector_size(Bytes)));
   constexpr int L = Bytes / sizeof(S);
-  V acc[NV];
-  for (int v = 0; v < NV; ++v) acc[v] = V{};
+  V acc_a[NV], acc_b[NV];
+  for (int v = 0; v < NV; ++v) acc_a[v] = V{}, acc_b[v] = V{};
   for (int j = 0; j < count; ++j) {
-    const S s = a[rows[j] * lda];
+    const S sa = a[j], sb = b[j];
     const S* Bj = B + rows[j] * n + r;
     for (int v = 0; v < NV; ++v) {
-      V b;
-      __builtin_memcpy(&b, Bj + v * L, sizeof(V));
-      acc[v] += s * b;
+      V x;
+      __builtin_memcpy(&x, Bj + v * L, sizeof(V));
+      acc_a[v] += sa * x;
+      acc_b[v] += sb * x;
     }
   }
-  for (int v = 0; v < NV; ++v) __builtin_memcpy(out + r + v * L, &acc[v], sizeof(V));
+  for (int v = 0; v < NV; ++v) {
+    __builtin_memcpy(out_a + r + v * L, &acc_a[v], sizeof(V));
+    __builtin_memcpy(out_b + r + v * L, &acc_b[v], sizeof(V));
+  }
 }
 }  // namespace detail
 #endif
 
 template <typename S>
-RBD_HD void scaled_row_sum(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, int lda, int n,
-                           const int* RBD_RESTRICT rows, int count, S* RBD_RESTRICT out) {
+RBD_HD void scaled_row_sums(const S* RBD_RESTRICT B, const S* RBD_RESTRICT a, const S* RBD_RESTRICT b, int n,
+                            const int* RBD_RESTRICT rows, int count, S* RBD_RESTRICT out_a, S* RBD_RESTRICT out_b) {
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(__CUDACC__)
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
-    constexpr int L = 16 / sizeof(S), W = RBD_HOST_VECTOR_BYTES / sizeof(S);
+    constexpr int VB = RBD_HOST_VECTOR_BYTES, W = VB / sizeof(S), L = 16 / sizeof(S);
     int r = 0;
-    if constexpr (W > L) {  // wider vectors first (an instance compiled for AVX or AVX-512): 4, 2, 1 of them
-      constexpr int VB = RBD_HOST_VECTOR_BYTES;
-      for (; r + 4 * W <= n; r += 4 * W) detail::scaled_row_sum_block<S, 4, VB>(B, a, lda, n, rows, count, r, out);
-      if (r + 2 * W <= n) detail::scaled_row_sum_block<S, 2, VB>(B, a, lda, n, rows, count, r, out), r += 2 * W;
-      if (r + W <= n) detail::scaled_row_sum_block<S, 1, VB>(B, a, lda, n, rows, count, r, out), r += W;
-    }
-    for (; r + 8 * L <= n; r += 8 * L) detail::scaled_row_sum_block<S, 8>(B, a, lda, n, rows, count, r, out);
-    if (r + 4 * L <= n) detail::scaled_row_sum_block<S, 4>(B, a, lda, n, rows, count, r, out), r += 4 * L;
-    if (r + 2 * L <= n) detail::scaled_row_sum_block<S, 2>(B, a, lda, n, rows, count, r, out), r += 2 * L;
-    if (r + L <= n) detail::scaled_row_sum_block<S, 1>(B, a, lda, n, rows, count, r, out), r += L;
-    scaled_row_sum_plain(B, a, lda, n, rows, count, out, r);
+    for (; r + 4 * W <= n; r += 4 * W) detail::scaled_row_sums_block<S, 4, VB>(B, a, b, n, rows, count, r, out_a, out_b);
+    if (r + 2 * W <= n) detail::scaled_row_sums_block<S, 2, VB>(B, a, b, n, rows, count, r, out_a, out_b), r += 2 * W;
+    if (r + W <= n) detail::scaled_row_sums_block<S, 1, VB>(B, a, b, n, rows, count, r, out_a, out_b), r += W;
+    if constexpr (W > L)
+      if (r + L <= n) detail::scaled_row_sums_block<S, 1, 16>(B, a, b, n, rows, count, r, out_a, out_b), r += L;
+    scaled_row_sums_plain(B, a, b, n, rows, count, out_a, out_b, r);
     return;
   }
 #endif
-  scaled_row_sum_plain(B, a, lda, n, rows, count, out);
+  scaled_row_sums_plain(B, a, b, n, rows, count, out_a, out_b);
 }
 
 }  // namespace rbd

@@ -60,7 +60,8 @@ template <typename S> struct Workspace {
   Force<S>* so_f;        // (nc x 8)    idsva_so: their products with the current body's composites, and per-DoF terms
   int* so_i;             // (nc x 2)    idsva_so: column and depth below the current body of each of those DoFs
   // ---- quadratic in nv (full layout only)
-  S* so_dense;           // (4 nv² + nv) fdsva_so: ∂qdd/∂q, ∂qdd/∂qd, M⁻¹, a block, qdd
+  S* so_dense;           // (4 nv² + nv) fdsva_so: ∂qdd/∂q, ∂qdd/∂qd, M⁻¹, a block, qdd; aba_derivatives
+                         //             borrows the third and fourth for its products' scratch
   S* dense;              // (nv x nv + 2 nv) dense path (mimic models) and solves
   S* dense2;             // (nv x max(nv, 6)) aba_derivatives: a copy of the matrix M⁻¹ multiplies
 };
