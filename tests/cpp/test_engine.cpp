@@ -288,7 +288,7 @@ std::vector<double> reference(const Model& m, int op, const Samples& s, long b) 
     case 5:
       ok = rbd::aba_derivatives(mv, w, q, qd, a, static_cast<const double*>(nullptr), kG, tmp.data(), out.data(),
                                 out.data() + nn);
-      ok = ok && rbd::minv_passes(mv, w, q, true, out.data() + 2 * nn);  // (∇FD's M⁻¹: the direct passes')
+      ok = ok && rbd::minv(mv, w, q, true, out.data() + 2 * nn);  // (∇FD's M⁻¹: minv's, as forward_dynamics takes it)
       break;
     default:
       if (op < 12)

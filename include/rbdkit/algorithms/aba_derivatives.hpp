@@ -110,9 +110,9 @@ template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>&
 template <typename S> RBD_FLATTEN
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                             const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
-  // M⁻¹ (prepare_minv's) first: its backward pass leaves the placements and body inertias that the
+  // M⁻¹ first (forward_dynamics's, place): it leaves the placements and body inertias that the
   // derivative passes then reuse, in its frame (a free root's; the mimic path's CRBA leaves none)
-  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd)) return false;
+  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd, false, true)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     if (tree_sparse_product_pays(m)) {

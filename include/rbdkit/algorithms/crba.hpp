@@ -193,12 +193,14 @@ template <typename S> RBD_HD void crba_world(const ModelView<S>& m, Workspace<S>
 }
 
 // M(q), nv x nv row-major, symmetric. In body coordinates (writes w.X_parent,
-// w.Ic, w.F), on the general path in world coordinates (crba_world)
-template <typename S> RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M) {
+// w.Ic, w.F), on the general path in world coordinates (crba_world). placed: w.X_parent already
+// holds q's joint placements (rnea leaves them), which the body-frame pass then reads as they are
+template <typename S>
+RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M, bool placed = false) {
   if (m.has_mimic) return crba_world(m, w, q, M);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
-    w.X_parent[i] = body_transform(m.body[i], q);
+    if (!placed) w.X_parent[i] = body_transform(m.body[i], q);
     w.Ic[i] = m.body[i].I;
   }
   crba_body_backward_pass(m, w, M);

@@ -495,18 +495,18 @@ template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
 
 // Minv = M⁻¹ by crba and the factorisation above, for a model without mimic joints (bodies depth-first:
 // minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
-// (composites) and w.F as crba does, not minv_backward_pass's placements. false if some D_k is at the
+// (composites) and w.F as crba does, not minv_backward_pass's placements (placed: as crba's). false if some D_k is at the
 // rounding level of its terms or below (pivot_positive), the terms' size taken from the composite
 // inertia: stricter than the passes' check on the articulated inertia (a light link under a coaxial
 // joint carrying a heavy one has D_k far below sᵀ Ic s). minv then runs the passes, whose verdict
 // stands
 template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
-                                                S* Minv) {
+                                                S* Minv, bool placed = false) {
   const int n = m.nv;
   S* H = w.dense2;
   int* lambda = w.so_i;
   int* run = w.so_i + n;
-  crba(m, w, q, H);
+  crba(m, w, q, H, placed);
   dof_tree(m, lambda, run);
   for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
   // each pivot's scale, then 1/D_k: Σ_r Ic_rr s_r² of the joint's column s against its composite
@@ -597,10 +597,15 @@ RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
 
 // qdd = M⁻¹ (tau - c(q, qd, f_ext)): forward dynamics through the inverse.
 // writes w.dense (M⁻¹ in its first nv² entries; with mimic joints M's Cholesky
-// factor) and qdd (nv). leave_world: as minv's
+// factor) and qdd (nv). M⁻¹ as minv takes it: by M's factorisation where that pays, on the joint
+// placements the bias's RNEA left (crba's placed), else by the direct passes. leave_world: as
+// minv's. place: also leave in w the reference frame's placements, subspace columns and body
+// inertias that the derivative passes reuse (rnea_derivatives's placed; w.X_parent, w.X_world,
+// w.S_world, w.Ic), as the passes do anyway; after the factorisation one more pass writes them
+// (reference_placements), with no joint placed again
 template <typename S> RBD_FLATTEN
 RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
-                             const S* fext, S gravity, S* qdd, bool leave_world = false) {
+                             const S* fext, S gravity, S* qdd, bool leave_world = false, bool place = false) {
   const int nv = m.nv;
   S* r = w.dense + nv * nv + nv;  // residual tau - c
   rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
@@ -613,7 +618,11 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
     cholesky_solve(Mi, nv, qdd);
     return true;
   }
-  if (!minv_passes(m, w, q, true, Mi, leave_world)) return false;
+  if (minv_factored_pays(m) && minv_factored(m, w, q, true, Mi, true)) {
+    if (place) reference_placements(m, w, leave_world);
+  } else if (!minv_passes(m, w, q, true, Mi, leave_world)) {
+    return false;
+  }
   matvec(InlineTeam{}, Mi, r, qdd, nv, nv);
   return true;
 }

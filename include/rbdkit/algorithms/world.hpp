@@ -51,6 +51,19 @@ RBD_HD Inertia<S> reference_inertia(const ModelView<S>& m, const Workspace<S>& w
   return in_root_frame(b, leave_world) ? b.I : transform_inertia(w.X_world[i], b.I);
 }
 
+// X_0i, the subspace columns and the body inertias of every body in the reference frame from the
+// w.X_parent that a pass left (rnea's, crba's), without placing the joints again: what
+// world_placement and reference_inertia write body by body.  writes w.X_world, w.S_world, w.Ic
+template <typename S> RBD_HD void reference_placements(const ModelView<S>& m, Workspace<S>& w, bool leave_world) {
+  RBD_UNROLL
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& b = m.body[i];
+    reference_placement(m, w, i, leave_world);
+    for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
+    w.Ic[i] = reference_inertia(m, w, i, leave_world);
+  }
+}
+
 // the parent's velocity and acceleration in the reference frame (a root's: 0 and -g, g = (0, 0,
 // gravity) in the world, R_0rᵀ g in a root's frame with R_0r its w.X_parent; with_acc false: a
 // parent's acceleration is not read, 0)
