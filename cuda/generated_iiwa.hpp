@@ -26,9 +26,12 @@ struct Iiwa {
   static constexpr int nq = 7, nv = 7, nb = 7;
   // 1: mimic joints, or bodies not in depth-first order (the algorithms' general paths)
   static constexpr int has_mimic = 0;
+  // 1: M's tree-sparse factorisation pays (rbd::minv_factored_pays): minv and aba take it, aba in
+  // the full workspace
+  static constexpr int factored = 1;
 
   // bytes of one call's workspace (rbd::workspace_bytes): the O(n) layout (inverse_dynamics, aba
-  // without mimic joints) or the full one
+  // without mimic joints or the factorisation) or the full one
   template <class S> static constexpr unsigned long workspace_bytes(bool full) {
     return sizeof(S) == sizeof(float)
                ? (full ? 16128ul : 13664ul)
@@ -87,10 +90,11 @@ struct Iiwa {
     rbd::rnea(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, tau);
   }
 
-  // qdd (nv): the articulated-body algorithm; false if a joint-space inertia is singular
+  // qdd (nv): the articulated-body algorithm, or M's factorisation (factored); false if a
+  // joint-space inertia is singular
   template <class S>
   RBD_HD static bool aba(const S* q, const S* qd, const S* tau, S gravity, S* qdd) {
-    Call<S, bool(has_mimic)> c;
+    Call<S, bool(has_mimic || factored)> c;
     return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);
   }
 

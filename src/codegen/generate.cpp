@@ -73,9 +73,9 @@ bool is_reserved(const std::string& s) {
       "switch", "template", "this", "thread_local", "throw", "true", "try", "typedef", "typeid", "typename",
       "union", "unsigned", "using", "virtual", "void", "volatile", "wchar_t", "while", "xor", "xor_eq",
       // the struct's members and the namespaces it uses
-      "nq", "nv", "nb", "has_mimic", "workspace_bytes", "step_scratch", "bodies", "inverse_dynamics", "aba", "crba",
-      "minv", "inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient", "Call", "rbd",
-      "rbdkit_generated"};
+      "nq", "nv", "nb", "has_mimic", "factored", "workspace_bytes", "step_scratch", "bodies", "inverse_dynamics",
+      "aba", "crba", "minv", "inverse_dynamics_gradient", "forward_dynamics_gradient", "integrator_gradient", "Call",
+      "rbd", "rbdkit_generated"};
   return reserved.count(s) > 0;
 }
 
@@ -125,9 +125,12 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "struct " << name << " {\n"
        "  static constexpr int nq = " << nq << ", nv = " << nv << ", nb = " << nb << ";\n"
        "  // 1: mimic joints, or bodies not in depth-first order (the algorithms' general paths)\n"
-       "  static constexpr int has_mimic = " << (model.general_path() ? 1 : 0) << ";\n\n"
+       "  static constexpr int has_mimic = " << (model.general_path() ? 1 : 0) << ";\n"
+       "  // 1: M's tree-sparse factorisation pays (rbd::minv_factored_pays): minv and aba take it, aba in\n"
+       "  // the full workspace\n"
+       "  static constexpr int factored = " << (minv_factored_pays(model.view()) ? 1 : 0) << ";\n\n"
        "  // bytes of one call's workspace (rbd::workspace_bytes): the O(n) layout (inverse_dynamics, aba\n"
-       "  // without mimic joints) or the full one\n"
+       "  // without mimic joints or the factorisation) or the full one\n"
        "  template <class S> static constexpr unsigned long workspace_bytes(bool full) {\n"
        "    return sizeof(S) == sizeof(float)\n"
        "               ? (full ? " << workspace_bytes<float>(nb, nv) << "ul : "
@@ -171,10 +174,11 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "    Call<S, false>" << C <<
        "    rbd::rnea(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, tau);\n"
        "  }\n\n"
-       "  // qdd (nv): the articulated-body algorithm; false if a joint-space inertia is singular\n"
+       "  // qdd (nv): the articulated-body algorithm, or M's factorisation (factored); false if a\n"
+       "  // joint-space inertia is singular\n"
        "  template <class S>\n"
        "  RBD_HD static bool aba(" << P << "const S* q, const S* qd, const S* tau, S gravity, S* qdd) {\n"
-       "    Call<S, bool(has_mimic)>" << C <<
+       "    Call<S, bool(has_mimic || factored)>" << C <<
        "    return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);\n"
        "  }\n\n"
        "  // M (nv x nv): the composite-rigid-body algorithm\n"

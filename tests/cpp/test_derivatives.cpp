@@ -519,4 +519,71 @@ TEST(MinvFactored, StricterPivotFallsBackToThePasses) {
   EXPECT_NEAR(Zp[0] * 1e-15, 1.0, 1e-6);  // (M⁻¹)_00 = 1 / D_0 = 1 / I_light
 }
 
+// Forward dynamics through M's factorisation (aba_factored: RNEA, CRBA on its placements, Lᵀ D L and
+// two sweeps) against the articulated-body passes (aba in a linear workspace, which has no room for
+// M), on every model without mimic joints: the same qdd to 1e-12 relative, with and without external
+// forces; aba in a full workspace is the factorisation's qdd bit for bit exactly where
+// minv_factored_pays says so (else the passes'), and aba_layout gives the full layout there
+TEST(AbaFactored, EqualsThePasses) {
+  int checked = 0, factored = 0;
+  for (const ModelCase& mc : all_cases()) {
+    const Model m = Model::from_urdf_file(mc.path, mc.floating);
+    if (m.general_path()) continue;  // (mimic joints: aba_dense, Cholesky)
+    SCOPED_TRACE(mc.path + (mc.floating ? " floating" : ""));
+    ++checked;
+    const ModelView<double> mv = m.view();
+    const bool pays = minv_factored_pays(mv);
+    factored += pays;
+    EXPECT_EQ(aba_layout(m), pays ? kFullWorkspace : kLinearWorkspace);
+    WorkspaceBuffer full(m), linear(m, kLinearWorkspace);
+    const int nv = m.nv;
+    std::mt19937 rng(37);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::vector<double> q0 = m.neutral(), d(nv), q(m.nq), qd(nv), tau(nv), fext(6 * m.nb());
+    for (int trial = 0; trial < 3; ++trial) {
+      for (auto& x : d) x = 2 * U(rng);
+      integrate(mv, q0.data(), d.data(), q.data());
+      for (int k = 0; k < nv; ++k) qd[k] = 2 * U(rng), tau[k] = 10 * U(rng);
+      for (auto& x : fext) x = U(rng);
+      for (const double* fe : {static_cast<const double*>(nullptr), static_cast<const double*>(fext.data())}) {
+        std::vector<double> a_passes(nv), a_full(nv), a_fact(nv, 0.0);
+        ASSERT_TRUE(aba(mv, linear.get(), q.data(), qd.data(), tau.data(), fe, -9.81, a_passes.data()));
+        ASSERT_TRUE(aba(mv, full.get(), q.data(), qd.data(), tau.data(), fe, -9.81, a_full.data()));
+        ASSERT_TRUE(aba_factored(mv, full.get(), q.data(), qd.data(), tau.data(), fe, -9.81, a_fact.data()));
+        EXPECT_LT(max_rel_err(a_fact, a_passes), 1e-12) << "trial " << trial;
+        EXPECT_EQ(std::memcmp(a_full.data(), (pays ? a_fact : a_passes).data(), nv * sizeof(double)), 0)
+            << "trial " << trial;
+      }
+    }
+  }
+  EXPECT_GE(checked, 8);
+  EXPECT_GE(factored, 4);  // (the iiwa, HyQ and Atlas fixed, floating HyQ and iiwa, the small test models)
+}
+
+// The factorisation's stricter pivot (MinvFactored.StricterPivotFallsBackToThePasses's model): aba_factored
+// refuses M, and aba, given room for it, returns the passes' qdd
+TEST(AbaFactored, StricterPivotFallsBackToThePasses) {
+  const char* limit = R"(<limit lower="-3" upper="3" effort="1" velocity="1"/>)";
+  const std::string xml = std::string(R"(<robot name="coaxial"><link name="base"/>
+    <link name="light"><inertial><mass value="1"/>
+      <inertia ixx="1e-3" iyy="1e-3" izz="1e-15" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    <link name="heavy"><inertial><mass value="1"/>
+      <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    <joint name="j1" type="revolute"><parent link="base"/><child link="light"/><axis xyz="0 0 1"/>)") +
+                          limit + R"(</joint>
+    <joint name="j2" type="revolute"><parent link="light"/><child link="heavy"/><axis xyz="0 0 1"/>)" +
+                          limit + R"(</joint></robot>)";
+  const Model m = Model::from_urdf_string(xml);
+  WorkspaceBuffer full(m), linear(m, kLinearWorkspace);
+  const ModelView<double> mv = m.view();
+  ASSERT_TRUE(minv_factored_pays(mv));
+  const double q[2] = {0.3, -0.7}, qd[2] = {0.5, -1.0}, tau[2] = {1e-15, 0.2};
+  double a_fact[2], a_full[2], a_passes[2];
+  EXPECT_FALSE(aba_factored(mv, full.get(), q, qd, tau, static_cast<const double*>(nullptr), -9.81, a_fact));
+  ASSERT_TRUE(aba(mv, full.get(), q, qd, tau, static_cast<const double*>(nullptr), -9.81, a_full));
+  ASSERT_TRUE(aba(mv, linear.get(), q, qd, tau, static_cast<const double*>(nullptr), -9.81, a_passes));
+  EXPECT_EQ(std::memcmp(a_full, a_passes, sizeof a_full), 0);
+  EXPECT_TRUE(std::isfinite(a_full[0]) && std::isfinite(a_full[1]));
+}
+
 INSTANTIATE_TEST_SUITE_P(Models, Derivatives, ::testing::ValuesIn(all_cases()), rbd_test::case_name);

@@ -222,13 +222,51 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
   return true;
 }
 
+// forward dynamics through M's tree-sparse factorisation (crba.hpp's mass_factor), for a small tree
+// (minv_factored_pays) in a full workspace: the bias c by RNEA, which leaves the joint placements; M by
+// CRBA on them (placed); M = Lᵀ D L; qdd = M⁻¹ (tau - c) by mass_factor_solve. On the iiwa, HyQ and
+// fixed Atlas it took 0.76-0.83 of the three passes' time, on floating HyQ 0.9 (a compiled instance,
+// docs/performance.md's tenth round). false where mass_factor refuses a pivot (qdd untouched): aba then
+// runs the passes, whose verdict stands. M and L in w.dense2, tau - c and 1/D in w.dense, the DoF tree
+// in w.so_i
+template <typename S>
+RBD_HD bool aba_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+                         const S* fext, S gravity, S* qdd) {
+  const int nv = m.nv;
+  S* x = w.dense;  // tau - c, then qdd
+  S* dinv = w.dense + nv;
+  int* lambda = w.so_i;
+  int* run = w.so_i + nv;
+  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, x);
+  for (int k = 0; k < nv; ++k) x[k] = tau[k] - x[k];
+  crba(m, w, q, w.dense2, true);
+  dof_tree(m, lambda, run);
+  if (!mass_factor(m, w, lambda, run, w.dense2, dinv, 1)) return false;
+  mass_factor_solve(nv, lambda, run, w.dense2, dinv, 1, x);
+  for (int k = 0; k < nv; ++k) qdd[k] = x[k];
+  return true;
+}
+
+// whether a scalar type computes in single precision: float, and a SIMD pack (simd.hpp's Pack<T, W>) or
+// a dual number (dual.hpp) over float
+template <typename S> struct single_precision : std::is_same<S, float> {};
+template <template <class, int> class P, class T, int W> struct single_precision<P<T, W>> : single_precision<T> {};
+template <template <class> class D, class T> struct single_precision<D<T>> : single_precision<T> {};
+
 // qdd (nv) = FD(q, qd, tau, f_ext). fext may be null. Returns false if the
 // articulated inertia of some joint is not positive definite (e.g. a chain
-// of massless bodies), in which case qdd is undefined.
+// of massless bodies), in which case qdd is undefined. The three passes of the
+// articulated-body algorithm; on a small tree, in double precision and given a
+// full workspace (aba_layout gives one there), M's factorisation (aba_factored),
+// the same qdd to rounding. Not in float: forming M costs accuracy where M is
+// ill-conditioned (the floating planar test model, cond(M) up to 2e4: 1.1e-4
+// against float64, where the passes stay within 1e-4)
 template <typename S> RBD_FLATTEN
 RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
                 S gravity, S* qdd) {
   if (m.has_mimic) return aba_dense(m, w, q, qd, tau, fext, gravity, qdd);
+  if constexpr (!single_precision<S>::value)
+    if (w.dense2 && minv_factored_pays(m) && aba_factored(m, w, q, qd, tau, fext, gravity, qdd)) return true;
   aba_forward_pass1(m, w, q, qd, fext);
   if (!aba_backward_pass(m, w, tau)) return false;
   aba_forward_pass2(m, w, gravity, qdd);

@@ -413,43 +413,15 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
   }
 }
 
-// ---- M⁻¹ through M's tree-sparse factorisation (Featherstone, RBDA §6.5), for a small tree
+// ---- M⁻¹ through M's tree-sparse factorisation (crba.hpp's mass_factor), for a small tree
 //
-// M = Lᵀ D L with L unit lower triangular, L_kj ≠ 0 only where j is an ancestor DoF of k (the
-// DoF tree: a joint's DoFs in a chain under its parent's last), computed in place over M's lower
-// triangle from the leaves up in O(Σ_k depth_k²):
-//   for k = nv-1 .. 0:  D_k = H_kk;  for i ∈ anc(k):  a = H_ki / D_k,  H_ij -= a H_kj (j ∈ anc(i) ∪ {i}),  H_ki = a
-// For a one-DoF joint D_k is its articulated inertia sᵀ IA s, the direct passes' D (for a multi-DoF
-// joint, the pivots of the passes' D block). Then Z = M⁻¹ from
-// L Z = D⁻¹ L⁻ᵀ (unit upper L⁻ᵀ), row by row from the root:
+// Z = M⁻¹ from L Z = D⁻¹ L⁻ᵀ (unit upper L⁻ᵀ), row by row from the root:
 //   Z_rc = -Σ_{j ∈ anc(r)} L_rj Z_jc  (c < r),   Z_rr = 1/D_r - Σ_{j ∈ anc(r)} L_rj Z_rj
 // where every Z_jc is known by then (j, c < r: row j's own, or row c's mirrored). Columns outside r's
 // root subtree are zero (M is block diagonal over the trees under the world). Each row's off-diagonal
 // part is sums over contiguous runs. CRBA plus this took 0.45-0.7 of the direct passes' time on the
 // iiwa, HyQ and fixed Atlas, 0.9 on floating HyQ and iiwa, 1.1 on floating Atlas (minv_factored_pays;
 // docs/performance.md's ninth round).
-
-// lambda[k]: DoF k's parent DoF (-1 under the world); run[k]: the first DoF of the chain of
-// consecutive DoFs that ends at k (lambda[j] = j - 1 for j in (run[k], k]). A DoF's ancestors are then
-// a few contiguous runs: [run[k], k], then [run[e], e] for e = lambda[run[k]], and so on up to the
-// world (one run on a chain like the iiwa's). Bodies in depth-first order (no mimic joints)
-template <typename S> RBD_HD void dof_tree(const ModelView<S>& m, int* lambda, int* run) {
-  for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    const BodyDesc<S>* p = b.parent >= 0 ? &m.body[b.parent] : nullptr;
-    int up = p ? p->v_idx + p->nv - 1 : -1;
-    for (int k = b.v_idx; k < b.v_idx + b.nv; ++k) {
-      lambda[k] = up;
-      run[k] = up >= 0 && up == k - 1 ? run[up] : k;
-      up = k;
-    }
-  }
-}
-
-// f(first, last) for each run of DoF k's ancestors and k itself (dof_tree), from k up
-template <typename F> RBD_HD_INLINE void for_dof_path(const int* lambda, const int* run, int k, F&& f) {
-  for (int e = k; e >= 0; e = lambda[run[e]]) f(run[e], e);
-}
 
 // zr[c] = -Σ_j Hr[j] Z[j·n + c] for c in [c0, c1), over the DoFs j that ancestors(f) visits (f(j) for
 // each, nearest first): a row of M⁻¹ below its diagonal from its ancestors' rows. In host code that
@@ -481,25 +453,12 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
   });
 }
 
-// whether minv takes the factorisation: Σ_i nv_i · nv_subtree_i, the (ancestor DoF, DoF) pairs of the
-// tree (L's nonzeros below the diagonal, plus the joints' own), at most 9 per DoF. Measured (-march=native
-// harness, factored against the passes): iiwa 4 per DoF (375 against 582 ns), fixed HyQ 2 (432 against
-// 972), fixed Atlas 5 (1960 against 2873), floating HyQ 7.3 (1110 against 1256), floating iiwa 8.2 (835
-// against 884), floating Atlas 10.2 (3538 against 3250). O(nb): it runs on every call
-template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
-  if (m.has_mimic) return false;
-  long pairs = 0;
-  for (int i = 0; i < m.nb; ++i) pairs += static_cast<long>(m.body[i].nv) * m.body[i].nv_subtree;
-  return pairs <= 9L * m.nv;
-}
-
-// Minv = M⁻¹ by crba and the factorisation above, for a model without mimic joints (bodies depth-first:
-// minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent, w.Ic
-// (composites) and w.F as crba does, not minv_backward_pass's placements (placed: as crba's). false if some D_k is at the
-// rounding level of its terms or below (pivot_positive), the terms' size taken from the composite
-// inertia: stricter than the passes' check on the articulated inertia (a light link under a coaxial
-// joint carrying a heavy one has D_k far below sᵀ Ic s). minv then runs the passes, whose verdict
-// stands
+// Minv = M⁻¹ by crba and its factorisation (mass_factor), for a model without mimic joints (bodies
+// depth-first: minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when
+// dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent (placed:
+// as crba's), w.Ic (composites) and w.F as crba does, not minv_backward_pass's placements. false where
+// mass_factor refuses a pivot (stricter than the passes' check): minv then runs the passes, whose
+// verdict stands
 template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
                                                 S* Minv, bool placed = false) {
   const int n = m.nv;
@@ -509,36 +468,7 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
   crba(m, w, q, H, placed);
   dof_tree(m, lambda, run);
   for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
-  // each pivot's scale, then 1/D_k: Σ_r Ic_rr s_r² of the joint's column s against its composite
-  // inertia, the size of the terms of M_kk = sᵀ Ic s (so that a rod turned about its own axis, whose
-  // M_kk is rounding noise, is singular as in the direct passes)
-  for (int i = 0; i < m.nb; ++i) {
-    const BodyDesc<S>& b = m.body[i];
-    const Inertia<S>& Ic = w.Ic[i];
-    for (int l = 0; l < b.nv; ++l) {
-      const Motion<S> s = joint_subspace_col(b, l);
-      Minv[(b.v_idx + l) * (n + 1)] = Ic.m * dot(s.lin, s.lin) + Ic.I(0, 0) * (s.ang.x * s.ang.x) +
-                                      Ic.I(1, 1) * (s.ang.y * s.ang.y) + Ic.I(2, 2) * (s.ang.z * s.ang.z);
-    }
-  }
-  // LTDL, leaves first; each ancestor i of k (nearest first) takes H_i· -= a H_k· over its own path
-  for (int k = n - 1; k >= 0; --k) {
-    const S dk = H[k * n + k];
-    if (!pivot_positive(dk, Minv[k * n + k])) return false;
-    const S dinv = S(1) / dk;
-    Minv[k * n + k] = dinv;
-    S* RBD_RESTRICT Hk = H + k * n;
-    for_dof_path(lambda, run, lambda[k], [&](int i0, int i1) {
-      for (int i = i1; i >= i0; --i) {
-        const S a = Hk[i] * dinv;
-        S* RBD_RESTRICT Hi = H + i * n;
-        for_dof_path(lambda, run, i, [&](int j0, int j1) {
-          for (int j = j0; j <= j1; ++j) Hi[j] -= a * Hk[j];
-        });
-        Hk[i] = a;
-      }
-    });
-  }
+  if (!mass_factor(m, w, lambda, run, H, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
   // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
   for (int r = 0; r < n; ++r) {
     int c0 = r;

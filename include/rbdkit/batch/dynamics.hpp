@@ -55,8 +55,11 @@ template <typename S> class WorkspaceBufferT {
 };
 using WorkspaceBuffer = WorkspaceBufferT<double>;
 
-// the layout aba needs: linear, full on the general path (Model::general_path: its dense path)
-inline WorkspaceLayout aba_layout(const Model& m) { return m.general_path() ? kFullWorkspace : kLinearWorkspace; }
+// the layout aba needs: linear, full on the general path (Model::general_path: its dense path) and
+// where M's factorisation pays (minv_factored_pays: aba_factored)
+inline WorkspaceLayout aba_layout(const Model& m) {
+  return m.general_path() || minv_factored_pays(m.view()) ? kFullWorkspace : kLinearWorkspace;
+}
 
 // the caller's workspace, or one of our own of the given layout for the
 // duration of a call (a caller's workspace must hold that layout)

@@ -143,7 +143,7 @@ struct OutSpec {
 // the workspace an operation needs (workspace.hpp)
 enum OpWorkspace : unsigned char {
   kLinear,            // the O(nb + nv) arrays
-  kLinearUnlessMimic, // linear, full on a model with mimic joints (aba's dense path)
+  kLinearUnlessMimic, // linear, full on a model with mimic joints (aba's dense path) or where M's factorisation pays (aba_layout)
   kFull,              // every array
 };
 
