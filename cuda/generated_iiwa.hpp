@@ -94,7 +94,7 @@ struct Iiwa {
   // joint-space inertia is singular
   template <class S>
   RBD_HD static bool aba(const S* q, const S* qd, const S* tau, S gravity, S* qdd) {
-    Call<S, bool(has_mimic || factored)> c;
+    Call<S, has_mimic != 0 || factored != 0> c;
     return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);
   }
 

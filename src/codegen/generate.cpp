@@ -178,7 +178,7 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "  // joint-space inertia is singular\n"
        "  template <class S>\n"
        "  RBD_HD static bool aba(" << P << "const S* q, const S* qd, const S* tau, S gravity, S* qdd) {\n"
-       "    Call<S, bool(has_mimic || factored)>" << C <<
+       "    Call<S, has_mimic != 0 || factored != 0>" << C <<
        "    return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);\n"
        "  }\n\n"
        "  // M (nv x nv): the composite-rigid-body algorithm\n"

@@ -1,6 +1,7 @@
 // rbdkit/algorithms/aba.hpp — forward dynamics qdd = FD(q, qd, tau, f_ext)
 // by the articulated-body algorithm (Featherstone, RBDA §7.3, table 7.1),
-// in body coordinates, O(n).
+// in body coordinates, O(n); on a small tree in double precision by M's
+// tree-sparse factorisation (aba_factored, crba.hpp's mass_factor), faster there.
 //
 // Mimic joints couple coordinates across bodies, which the articulated-body
 // recursion cannot absorb; mimic models take the dense path

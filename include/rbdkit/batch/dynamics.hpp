@@ -138,7 +138,7 @@ void inverse_dynamics(const Model& m, long B, const double* q, const double* qd,
 void crba(const Model& m, long B, const double* q, double* M, Workspace<double>* ws = nullptr);
 // Minv (B x nv x nv); upper triangle only when dense is false
 void minv(const Model& m, long B, const double* q, bool dense, double* Minv, Workspace<double>* ws = nullptr);
-// qdd (B x nv) by the articulated-body algorithm
+// qdd (B x nv) by aba (the articulated-body algorithm, or M's factorisation on a small tree)
 void aba(const Model& m, long B, const double* q, const double* qd, const double* tau, const double* fext,
          double gravity, double* qdd, Workspace<double>* ws = nullptr);
 // qdd (B x nv) = M⁻¹ (tau - c)

@@ -129,7 +129,9 @@ struct Minv {
 
 struct Aba {
   static constexpr OpSpec spec = {
-      "aba", "aba", "aba", "Forward dynamics by the articulated-body algorithm: qdd (nv,).",
+      "aba", "aba", "aba",
+      "Forward dynamics: qdd (nv,), by the articulated-body algorithm, or on a small tree in double precision "
+      "by M's tree-sparse factorisation.",
       5,
       {array("q", shape(kNq), kConfiguration), array("qd", shape(kNv)), array("tau", shape(kNv)),
        optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
