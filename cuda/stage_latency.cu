@@ -76,7 +76,9 @@ __global__ void stages(ModelView<S> call_model, const S* q, const S* qd, const S
         case 4: aba(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd); break;
         case 5: rnea_derivatives_forward_pass(m, w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, false, true); break;
         case 6: rnea_derivatives_backward_pass(m, w, D1, D2, static_cast<S*>(nullptr)); break;
-        case 7: apply_neg_minv(m, w, D1, nv); break;  // (w.dense holds stage 3's M⁻¹)
+        // (w.dense: stage 3's M⁻¹, its first 2 nv entries overwritten where stage 4's aba factorised
+        // M: the same work)
+        case 7: apply_neg_minv(m, w, D1, nv); break;
         case 8: aba_derivatives(m, w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, D1, D2); break;
         default: break;
       }

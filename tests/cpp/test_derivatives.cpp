@@ -489,11 +489,9 @@ TEST(MinvFactored, IsTheInverse) {
   EXPECT_GE(checked, 8);
 }
 
-// The factorisation's pivot check scales D_k by the composite inertia's terms, which a light link
-// (I_zz = 1e-15) under a coaxial joint carrying a unit one makes 1e15 times D_k: M_00 - M_01²/M_11 is
-// then (1 + 1e-15) - 1, cancellation the check refuses, where the passes get D = 1e-15 from the
-// articulated inertia exactly and accept it. minv then returns the passes' M⁻¹
-TEST(MinvFactored, StricterPivotFallsBackToThePasses) {
+// a light link (I_zz = 1e-15) under a coaxial joint that carries a unit one: M_00 - M_01²/M_11 is
+// (1 + 1e-15) - 1, the cancellation the factorisation's pivot check refuses
+static Model coaxial_model() {
   const char* limit = R"(<limit lower="-3" upper="3" effort="1" velocity="1"/>)";
   const std::string xml = std::string(R"(<robot name="coaxial"><link name="base"/>
     <link name="light"><inertial><mass value="1"/>
@@ -504,7 +502,15 @@ TEST(MinvFactored, StricterPivotFallsBackToThePasses) {
                           limit + R"(</joint>
     <joint name="j2" type="revolute"><parent link="light"/><child link="heavy"/><axis xyz="0 0 1"/>)" +
                           limit + R"(</joint></robot>)";
-  const Model m = Model::from_urdf_string(xml);
+  return Model::from_urdf_string(xml);
+}
+
+// The factorisation's pivot check scales D_k by the composite inertia's terms, which a light link
+// (I_zz = 1e-15) under a coaxial joint carrying a unit one makes 1e15 times D_k: M_00 - M_01²/M_11 is
+// then (1 + 1e-15) - 1, cancellation the check refuses, where the passes get D = 1e-15 from the
+// articulated inertia exactly and accept it. minv then returns the passes' M⁻¹
+TEST(MinvFactored, StricterPivotFallsBackToThePasses) {
+  const Model m = coaxial_model();
   ASSERT_EQ(m.nv, 2);
   WorkspaceBuffer buf(m);
   Workspace<double>& w = buf.get();
@@ -563,17 +569,7 @@ TEST(AbaFactored, EqualsThePasses) {
 // The factorisation's stricter pivot (MinvFactored.StricterPivotFallsBackToThePasses's model): aba_factored
 // refuses M, and aba, given room for it, returns the passes' qdd
 TEST(AbaFactored, StricterPivotFallsBackToThePasses) {
-  const char* limit = R"(<limit lower="-3" upper="3" effort="1" velocity="1"/>)";
-  const std::string xml = std::string(R"(<robot name="coaxial"><link name="base"/>
-    <link name="light"><inertial><mass value="1"/>
-      <inertia ixx="1e-3" iyy="1e-3" izz="1e-15" ixy="0" ixz="0" iyz="0"/></inertial></link>
-    <link name="heavy"><inertial><mass value="1"/>
-      <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-    <joint name="j1" type="revolute"><parent link="base"/><child link="light"/><axis xyz="0 0 1"/>)") +
-                          limit + R"(</joint>
-    <joint name="j2" type="revolute"><parent link="light"/><child link="heavy"/><axis xyz="0 0 1"/>)" +
-                          limit + R"(</joint></robot>)";
-  const Model m = Model::from_urdf_string(xml);
+  const Model m = coaxial_model();
   WorkspaceBuffer full(m), linear(m, kLinearWorkspace);
   const ModelView<double> mv = m.view();
   ASSERT_TRUE(minv_factored_pays(mv));

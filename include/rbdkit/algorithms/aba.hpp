@@ -261,7 +261,10 @@ template <template <class> class D, class T> struct single_precision<D<T>> : sin
 // full workspace (aba_layout gives one there), M's factorisation (aba_factored),
 // the same qdd to rounding. Not in float: forming M costs accuracy where M is
 // ill-conditioned (the floating planar test model, cond(M) up to 2e4: 1.1e-4
-// against float64, where the passes stay within 1e-4)
+// against float64, where the passes stay within the 1e-4 bound of the families
+// that do not apply M⁻¹; M⁻¹, FD through it and ∇FD, bound at 2e-3 in float,
+// factorise in either precision). aba_layout does not know the precision: a
+// float caller gets the full workspace there too
 template <typename S> RBD_FLATTEN
 RBD_HD bool aba(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau, const S* fext,
                 S gravity, S* qdd) {

@@ -560,7 +560,8 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
 // forward_dynamics on a team of threads (model/team.hpp), for a model without mimic joints: M⁻¹ on
 // the first warp (minv_team, into w.dense: w the full workspace) beside the bias c = RNEA(q, qd, 0,
 // f_ext) on one thread, in a linear workspace of its own; then qdd = M⁻¹ (tau - c), a row per index.
-// The same values as forward_dynamics. extra: forward_dynamics_team_bytes(nb, nv) bytes (RNEA's
+// The same values as forward_dynamics where that runs the passes, the same to rounding where it
+// factorises M (minv_factored_pays). extra: forward_dynamics_team_bytes(nb, nv) bytes (RNEA's
 // workspace, tau - c, a flag); false, on every thread, where a D is not positive definite
 template <typename S> RBD_HD unsigned long forward_dynamics_team_bytes(int nb, int nv) {
   return workspace_bytes<S>(nb, nv, kLinearWorkspace) + workspace_array_bytes<S>(nv) + 16;

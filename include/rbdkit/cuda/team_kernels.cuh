@@ -188,7 +188,7 @@ template <> struct TeamOp<ops::Minv> : TeamRule<8, 16> {
 
 // FD through M⁻¹, qdd = M⁻¹ (u - c): forward_dynamics_team (minv.hpp), the bias c by RNEA on one
 // thread beside minv_team on the first warp, then each row of the product. The same values as
-// forward_dynamics (minv.hpp). extra: forward_dynamics_team_bytes (RNEA's workspace, u - c, the flag)
+// forward_dynamics (minv.hpp) where that runs the passes, to rounding where it factorises M. extra: forward_dynamics_team_bytes (RNEA's workspace, u - c, the flag)
 template <> struct TeamOp<ops::ForwardDynamics> : TeamRule<8, 16> {
   template <typename T> RBD_HD static unsigned long extra_bytes(int nb, int nv) {
     return forward_dynamics_team_bytes<T>(nb, nv);
