@@ -216,8 +216,7 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
                       const S* fext, S gravity, S* qdd) {
   S* M = w.dense;
   crba(m, w, q, M);
-  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, qdd);  // qdd <- c
-  for (int k = 0; k < m.nv; ++k) qdd[k] = tau[k] - qdd[k];
+  bias_residual(m, w, q, qd, tau, fext, gravity, qdd);
   if (!cholesky(M, m.nv)) return false;
   cholesky_solve(M, m.nv, qdd);
   return true;
@@ -236,14 +235,9 @@ RBD_HD bool aba_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, con
   const int nv = m.nv;
   S* x = w.dense;  // tau - c, then qdd
   S* dinv = w.dense + nv;
-  int* lambda = w.so_i;
-  int* run = w.so_i + nv;
-  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, x);
-  for (int k = 0; k < nv; ++k) x[k] = tau[k] - x[k];
-  crba(m, w, q, w.dense2, true);
-  dof_tree(m, lambda, run);
-  if (!mass_factor(m, w, lambda, run, w.dense2, dinv, 1)) return false;
-  mass_factor_solve(nv, lambda, run, w.dense2, dinv, 1, x);
+  bias_residual(m, w, q, qd, tau, fext, gravity, x);
+  if (!crba_factored(m, w, q, true, dinv, 1)) return false;
+  mass_factor_solve(nv, w.so_i, w.so_i + nv, w.dense2, dinv, 1, x);
   for (int k = 0; k < nv; ++k) qdd[k] = x[k];
   return true;
 }

@@ -293,6 +293,16 @@ RBD_HD bool mass_factor(const ModelView<S>& m, const Workspace<S>& w, const int*
   return true;
 }
 
+// M(q) by crba into w.dense2 (placed: as crba's), the DoF tree into w.so_i (lambda, then run: 2 nv
+// ints), then mass_factor (1/D_k at dinv[k·stride]); false as mass_factor. Writes w.X_parent
+// (unless placed), w.Ic (composites) and w.F as crba does
+template <typename S>
+RBD_HD bool crba_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool placed, S* dinv, int stride) {
+  crba(m, w, q, w.dense2, placed);
+  dof_tree(m, w.so_i, w.so_i + m.nv);
+  return mass_factor(m, w, w.so_i, w.so_i + m.nv, w.dense2, dinv, stride);
+}
+
 // x (nv) <- M⁻¹ x = L⁻¹ D⁻¹ L⁻ᵀ x from mass_factor's L (in H) and 1/D (dinv, stride): x_i -= L_ki x_k
 // for k's ancestors i, leaves first; x_k *= 1/D_k; x_k -= Σ_i L_ki x_i, root first
 template <typename S>

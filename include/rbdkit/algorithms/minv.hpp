@@ -465,10 +465,8 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
   S* H = w.dense2;
   int* lambda = w.so_i;
   int* run = w.so_i + n;
-  crba(m, w, q, H, placed);
-  dof_tree(m, lambda, run);
   for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
-  if (!mass_factor(m, w, lambda, run, H, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
+  if (!crba_factored(m, w, q, placed, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
   // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
   for (int r = 0; r < n; ++r) {
     int c0 = r;
@@ -538,8 +536,7 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
                              const S* fext, S gravity, S* qdd, bool leave_world = false, bool place = false) {
   const int nv = m.nv;
   S* r = w.dense + nv * nv + nv;  // residual tau - c
-  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
-  for (int k = 0; k < nv; ++k) r[k] = tau[k] - r[k];
+  bias_residual(m, w, q, qd, tau, fext, gravity, r);
   S* Mi = w.dense;
   if (m.has_mimic) {
     crba(m, w, q, Mi);

@@ -72,6 +72,16 @@ RBD_HD void rnea(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd
   rnea_backward_pass(m, w, tau);
 }
 
+// r (nv) = tau - c(q, qd, f_ext), the bias c = ID(q, qd, 0, f_ext) by rnea (which leaves w.X_parent
+// at q): the right-hand side of M qdd = tau - c that forward dynamics through M or M⁻¹ solves. r may
+// not alias tau
+template <typename S>
+RBD_HD void bias_residual(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
+                          const S* fext, S gravity, S* r) {
+  rnea(m, w, q, qd, static_cast<const S*>(nullptr), fext, gravity, r);
+  for (int k = 0; k < m.nv; ++k) r[k] = tau[k] - r[k];
+}
+
 // rnea on a team of threads (model/team.hpp): the joint transforms side by side, the velocity and
 // acceleration chain on one thread, the net forces side by side, the backward pass on one thread. The
 // same values as rnea. An InlineTeam runs rnea

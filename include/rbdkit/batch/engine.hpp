@@ -34,7 +34,8 @@
 // outputs + scratch values). The layout is linear (O(nb + nv)) while only
 // inverse_dynamics, forward_dynamics and integrator have run (on a model
 // without mimic joints whose M's factorisation does not pay: aba_layout),
-// full (O(nb·nv + nv²)) from the first call of any other operation on. workspace_bytes() reports the current total.
+// full (O(nb·nv + nv²)) from the first call of any other operation on.
+// workspace_bytes() reports the current total.
 //
 // One call at a time per engine (calls from several threads serialise).
 #pragma once
