@@ -582,4 +582,36 @@ TEST(AbaFactored, StricterPivotFallsBackToThePasses) {
   EXPECT_TRUE(std::isfinite(a_full[0]) && std::isfinite(a_full[1]));
 }
 
+// place_joints (every placement pass's first step) gives body_transform's X_λi bit for bit, in double
+// and float: the sines and cosines of a vector of joints are ssincos's lane for lane, beyond the
+// reduction's range (|q| > 1e5: libm) too
+template <typename S> void expect_placements_are_body_transforms(const Model& m, const ModelView<S>& mv, const S* q) {
+  std::vector<Transform<S>> X(m.nb());
+  place_joints(mv, X.data(), q);
+  for (int i = 0; i < m.nb(); ++i) {
+    const Transform<S> ref = body_transform(mv.body[i], q);
+    EXPECT_EQ(std::memcmp(&X[i], &ref, sizeof ref), 0) << "body " << i;
+  }
+}
+TEST_P(Derivatives, PlaceJointsIsBodyTransformBitForBit) {
+  const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
+  const ModelView<double> mv = m.view();
+  const std::vector<BodyDesc<float>> bodies_f = m.bodies_as<float>();
+  const ModelView<float> mf = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, bodies_f.data()};
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> q0 = m.neutral(), d(m.nv), q(m.nq);
+  for (int trial = 0; trial < 20; ++trial) {
+    const double scale = trial < 10 ? 3.0 : 1e3;  // angles beyond ±π and a few beyond the reduction's range
+    for (auto& x : d) x = scale * U(rng);
+    integrate(mv, q0.data(), d.data(), q.data());
+    if (trial >= 15)
+      for (int i = 0; i < m.nb(); ++i)
+        if (mv.body[i].type == kRevolute && !mv.body[i].mimic && i % 2 == trial % 2) q[mv.body[i].q_idx] = 2.5e5 * U(rng);
+    expect_placements_are_body_transforms(m, mv, q.data());
+    const std::vector<float> qf(q.begin(), q.end());
+    expect_placements_are_body_transforms(m, mf, qf.data());
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Models, Derivatives, ::testing::ValuesIn(all_cases()), rbd_test::case_name);

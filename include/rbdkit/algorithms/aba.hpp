@@ -18,10 +18,10 @@ namespace rbd {
 //   writes w.X_parent, w.v, w.c, w.IA, w.f (= pA)
 template <typename S>
 RBD_HD void aba_forward_pass1(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* fext) {
+  place_joints(m, w.X_parent, q);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X_parent[i] = body_transform(b, q);
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
     w.v[i] = b.parent >= 0 ? w.X_parent[i].act_inv(w.v[b.parent]) + vJ : vJ;
     w.c[i] = cross(w.v[i], vJ);
@@ -196,10 +196,8 @@ template <typename S> RBD_HD void aba_forward_pass2(const ModelView<S>& m, Works
 // joint once an algorithm has reported a mass matrix that is not positive
 // definite. writes w.X_parent, w.IA, w.U, w.Dinv
 template <typename S> RBD_HD int aba_singular_body(const ModelView<S>& m, Workspace<S>& w, const S* q) {
-  for (int i = 0; i < m.nb; ++i) {
-    w.X_parent[i] = body_transform(m.body[i], q);
-    w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
-  }
+  place_joints(m, w.X_parent, q);
+  for (int i = 0; i < m.nb; ++i) w.IA[i] = Mat6<S>::from_inertia(m.body[i].I);
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
     Force<S>* U = w.U + 6 * i;

@@ -171,7 +171,8 @@ RBD_HD void external_force_map(const ModelView<S>& m, Workspace<S>& w, const S* 
     for (int r = 0; r < nv; ++r)
       for (int c = 0; c < 6; ++c) Jt[bb * body_stride + r * row_stride + c] = S(0);
   // world-frame subspace columns
-  for (int i = 0; i < nb; ++i) world_placement(m, w, q, i);
+  place_joints(m, w.X_parent, q);
+  for (int i = 0; i < nb; ++i) placed_world(m, w, i);
   // column k of J_b (body frame) = X_0b⁻¹ s_k for k on b's support
   for (int bb = 0; bb < nb; ++bb) {
     S* Jb = Jt + bb * body_stride;

@@ -192,9 +192,10 @@ template <typename S>
 RBD_HD bool minv_backward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv, bool leave_world = false) {
   const int nv = m.nv;
   // body placements X_0i, articulated inertias start as the body inertias
+  place_joints(m, w.X_parent, q);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
-    world_placement(m, w, q, i, false, leave_world);
+    placed_world(m, w, i, false, leave_world);
     w.Ic[i] = reference_inertia(m, w, i, leave_world);
     w.IA[i] = Mat6<S>::from_inertia(w.Ic[i]);
   }

@@ -43,9 +43,9 @@ template <typename S> RBD_HD void rnea_body_force(const ModelView<S>& m, Workspa
 template <typename S>
 RBD_HD void rnea_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                               const S* qdd, const S* fext, S gravity) {
+  place_joints(m, w.X_parent, q);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
-    w.X_parent[i] = body_transform(m.body[i], q);
     rnea_body_motion(m, w, i, qd, qdd, gravity);
     rnea_body_force(m, w, i, fext);
   }

@@ -49,10 +49,11 @@ template <typename S>
 RBD_HD void rnea_derivatives_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd,
                                           const S* qdd, const S* fext, S gravity, bool placed,
                                           bool leave_world) {
+  if (!placed) place_joints(m, w.X_parent, q);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
     // placement, subspace, velocity, acceleration, column sensitivities
-    if (!placed) world_placement(m, w, q, i, true, leave_world);
+    if (!placed) placed_world(m, w, i, true, leave_world);
     world_motion(m, w, i, qd, qdd, gravity, true, true, leave_world);
     if (!placed) w.Ic[i] = reference_inertia(m, w, i, leave_world);
     rnea_derivatives_body_terms(m, w, i, fext);

@@ -32,16 +32,23 @@ template <typename S> RBD_HD void reference_placement(const ModelView<S>& m, Wor
   else w.X_world[i] = w.X_parent[i];
 }
 
-// X_λi and X_0i (reference_placement) of body i; with_subspace: also its motion subspace columns in
-// the reference frame, s = X_0i S.  writes w.X_parent, w.X_world [, w.S_world]
+// X_0i (reference_placement) of body i from its w.X_parent (place_joints'); with_subspace: also its
+// motion subspace columns in the reference frame, s = X_0i S.  writes w.X_world [, w.S_world]
 template <typename S>
-RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true,
-                            bool leave_world = true) {
+RBD_HD void placed_world(const ModelView<S>& m, Workspace<S>& w, int i, bool with_subspace = true,
+                         bool leave_world = true) {
   const BodyDesc<S>& b = m.body[i];
-  w.X_parent[i] = body_transform(b, q);
   reference_placement(m, w, i, leave_world);
   if (with_subspace)
     for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
+}
+
+// X_λi and X_0i of body i (placed_world).  writes w.X_parent, w.X_world [, w.S_world]
+template <typename S>
+RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true,
+                            bool leave_world = true) {
+  w.X_parent[i] = body_transform(m.body[i], q);
+  placed_world(m, w, i, with_subspace, leave_world);
 }
 
 // body i's inertia in the reference frame (a root in_root_frame's is its own, not transformed)

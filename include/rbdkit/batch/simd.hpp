@@ -87,28 +87,10 @@ template <int W> struct NaturalVec {
 template <int W> inline void sincos_pack(const typename Pack<double, W>::vec& x_in, typename Pack<double, W>::vec& s_out,
                                          typename Pack<double, W>::vec& c_out) {
   typedef typename NaturalVec<W>::type V;
-  typedef typename Pack<double, W>::mask M;
   const V x = x_in;
-#if defined(__FAST_MATH__)
-  for (int l = 0; l < W; ++l) s_out[l] = ::sin(x[l]), c_out[l] = ::cos(x[l]);
-#else
-  V shifted, r, sr, cr;
-  sincos_shift(x, shifted);
-  sincos_reduce(x, shifted, r);
-  sincos_quarter(r, sr, cr);
-  M q;
-  __builtin_memcpy(&q, &shifted, sizeof q);
-  q = q & 3;
   V s, c;
-  sincos_quadrant(q, sr, cr, s, c);
-  const M big = (x > 1e5) | (x < -1e5) | (x != x);
-  bool any = false;
-  for (int l = 0; l < W; ++l) any |= big[l] != 0;
-  if (any)
-    for (int l = 0; l < W; ++l)
-      if (big[l]) s[l] = ::sin(x[l]), c[l] = ::cos(x[l]);
+  sincos_lanes(x, s, c);
   s_out = s, c_out = c;
-#endif
 }
 template <typename T, int W> inline void ssincos(const Pack<T, W>& x, Pack<T, W>& s, Pack<T, W>& c);
 template <int W> inline void ssincos(const Pack<double, W>& x, Pack<double, W>& s, Pack<double, W>& c) {

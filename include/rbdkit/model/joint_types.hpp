@@ -37,6 +37,8 @@
 // additive, the rotation in the body frame).
 #pragma once
 
+#include <type_traits>
+
 #include "rbdkit/model/joint.hpp"
 #include "rbdkit/spatial/lie.hpp"
 
@@ -83,15 +85,19 @@ template <int K, typename S> RBD_HD Mat3<S> turn_columns(const Mat3<S>& R, const
   return o;
 }
 
-// R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1)
-template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
-  S s, c;
-  ssincos(t, s, c);
+// R · rot(axis, t) for a 1-DoF body whose axis is ±e_k (b.axis_k = k + 1), from c = cos t, s = sin t
+template <typename S>
+RBD_HD Mat3<S> turn_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& c, const S& s) {
   switch (b.axis_k) {
     case 1: return turn_columns<0>(R, c, b.axis.x * s);
     case 2: return turn_columns<1>(R, c, b.axis.y * s);
     default: return turn_columns<2>(R, c, b.axis.z * s);
   }
+}
+template <typename S> RBD_HD Mat3<S> rotate_about_frame_axis(const BodyDesc<S>& b, const Mat3<S>& R, const S& t) {
+  S s, c;
+  ssincos(t, s, c);
+  return turn_about_frame_axis(b, R, c, s);
 }
 
 // R · axis for a 1-DoF body: a column of R when the axis is a frame axis
@@ -442,6 +448,35 @@ template <typename S> RBD_HD Transform<S> joint_transform(const BodyDesc<S>& b, 
 // X_parent_body = X_tree · X_J(q)
 template <typename S> RBD_HD Transform<S> body_transform(const BodyDesc<S>& b, const S* q) {
   return visit_joint(b.type, [&](auto J) { return J.placement(b, q); });
+}
+
+// X_λi = body_transform of every body into X (nb). On the host, in double and float, the sines and
+// cosines of the revolute joints about a frame axis (RevoluteJoint::placement's turn) come
+// RBD_HOST_LANES joints at a time (sincos_lanes: each lane ssincos's result bit for bit, so X is
+// body_transform's). Every placement pass starts here
+template <typename S> RBD_HD void place_joints(const ModelView<S>& m, Transform<S>* X, const S* q) {
+#if defined(RBD_HOST_LANES) && !defined(__CUDA_ARCH__)
+  if constexpr (std::is_floating_point<S>::value) {
+    typedef double V __attribute__((vector_size(RBD_HOST_VECTOR_BYTES)));
+    constexpr int L = RBD_HOST_LANES;
+    const auto turns = [](const BodyDesc<S>& b) { return b.type == kRevolute && b.axis_k != 0; };
+    for (int i0 = 0; i0 < m.nb; i0 += L) {
+      const int n = m.nb - i0 < L ? m.nb - i0 : L;
+      V t = {}, s, c;
+      for (int l = 0; l < n; ++l)
+        if (turns(m.body[i0 + l])) t[l] = static_cast<double>(joint_angle(m.body[i0 + l], q));
+      sincos_lanes(t, s, c);
+      for (int l = 0; l < n; ++l) {
+        const BodyDesc<S>& b = m.body[i0 + l];
+        if (turns(b)) X[i0 + l] = {turn_about_frame_axis(b, b.X_tree.R, S(c[l]), S(s[l])), b.X_tree.p};
+        else X[i0 + l] = body_transform(b, q);
+      }
+    }
+    return;
+  }
+#endif
+  RBD_UNROLL
+  for (int i = 0; i < m.nb; ++i) X[i] = body_transform(m.body[i], q);
 }
 
 // X · (column k of S): a subspace column in the frame X maps the body frame

@@ -49,6 +49,18 @@
 #else
 #define RBD_HOST_VECTOR_BYTES 16
 #endif
+// the single-sample code's own vectors on the host (GCC/clang vector extensions; the batch engine's
+// packs, batch/simd.hpp, run across samples instead): RBD_HOST_LANES doubles of RBD_HOST_VECTOR_BYTES
+// (the joints' sin and cos, joint_types.hpp's place_joints), and under AVX (RBD_HOST_AVX: a per-robot
+// instance compiled with -march=native) 4-lane 3-vectors for the spatial transforms (spatial.hpp's
+// transform_inertia, crba.hpp's column transforms), each lane with the scalar form's operations in its
+// order. Not in CUDA sources, whose host pass keeps the scalar forms
+#if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
+#define RBD_HOST_LANES (RBD_HOST_VECTOR_BYTES / 8)
+#if defined(__AVX__)
+#define RBD_HOST_AVX 1
+#endif
+#endif
 // a body or coordinate loop that nvcc unrolls whole where its trip count is a compile-time constant
 // (a per-robot instance's model: a robot's sizes and bodies as constants, cuda/instance.cuh), which
 // turns the bodies' joint types, parents and constants into immediates and keeps a chain's values in
@@ -111,6 +123,34 @@ RBD_HD_INLINE void sincos_quadrant(const Q& q, const V& sr, const V& cr, V& s, V
   s = (q & 2) != 0 ? -s1 : s1;
   c = ((q + 1) & 2) != 0 ? -c1 : c1;
 }
+#if defined(RBD_HOST_LANES)
+// sin and cos of every lane of x, a GCC/clang vector of doubles in its natural alignment: ssincos's
+// shift, reduction and series lane for lane (so each lane is the scalar result bit for bit), the
+// quadrant's sign and swap as lane masks, and libm for the lanes beyond |x| ≤ 1e5 (inf, NaN) and
+// for every lane under -ffast-math. Host only: the SIMD packs (batch/simd.hpp) and place_joints
+template <typename V> inline void sincos_lanes(const V& x, V& s, V& c) {
+  constexpr int n = sizeof(V) / sizeof(double);
+#if defined(__FAST_MATH__)
+  for (int l = 0; l < n; ++l) s[l] = ::sin(x[l]), c[l] = ::cos(x[l]);
+#else
+  typedef decltype(x < x) M;
+  V shifted, r, sr, cr;
+  sincos_shift(x, shifted);
+  sincos_reduce(x, shifted, r);
+  sincos_quarter(r, sr, cr);
+  M q;
+  __builtin_memcpy(&q, &shifted, sizeof q);
+  q = q & 3;
+  sincos_quadrant(q, sr, cr, s, c);
+  const M big = (x > 1e5) | (x < -1e5) | (x != x);
+  bool any = false;
+  for (int l = 0; l < n; ++l) any |= big[l] != 0;
+  if (any)
+    for (int l = 0; l < n; ++l)
+      if (big[l]) s[l] = ::sin(x[l]), c[l] = ::cos(x[l]);
+#endif
+}
+#endif
 RBD_HD_INLINE void ssincos(double x, double& s, double& c) {
 #if defined(__CUDA_ARCH__)
   ::sincos(x, &s, &c);

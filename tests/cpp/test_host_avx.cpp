@@ -1,0 +1,114 @@
+// The AVX forms of the spatial transforms (RBD_HOST_AVX: what a per-robot instance compiled with
+// -march=native takes; spatial.hpp's transform_inertia_avx, crba.hpp's crba_act_columns_avx), this
+// file being compiled with -mavx2: each against the scalar form in long double, which the
+// double-only AVX forms do not take. (The instances themselves are checked against the library
+// in test_specialize.cpp.) On a processor without AVX2 the tests say so and skip.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "rbdkit/algorithms/crba.hpp"
+
+#if !defined(RBD_HOST_AVX)
+#error "test_host_avx.cpp must be compiled with AVX (-mavx2): RBD_HOST_AVX is not defined"
+#endif
+
+using namespace rbd;
+
+namespace {
+
+bool cpu_has_avx2() { return __builtin_cpu_supports("avx2"); }
+
+template <typename T> Transform<T> transform_as(const Transform<double>& X) {
+  Transform<T> o;
+  for (int k = 0; k < 9; ++k) o.R.m[k] = T(X.R.m[k]);
+  o.p = {T(X.p.x), T(X.p.y), T(X.p.z)};
+  return o;
+}
+
+// a rotation about a random axis (or, one time in four, a frame axis: the rotations of most URDF
+// joints) and an offset of up to a metre
+Transform<double> random_transform(std::mt19937& rng) {
+  std::uniform_real_distribution<double> U(-1, 1);
+  Vec3<double> a = {U(rng), U(rng), U(rng)};
+  if (rng() % 4 == 0) a = {0, 0, 1};
+  const double n = std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
+  a = {a.x / n, a.y / n, a.z / n};
+  return {axis_angle(a, 3.0 * U(rng)), {U(rng), U(rng), U(rng)}};
+}
+
+// a body's inertia: mass 0.1-10 kg, centre of mass within half a metre, principal moments turned
+Inertia<double> random_inertia(std::mt19937& rng) {
+  std::uniform_real_distribution<double> U(-1, 1);
+  const double m = 5.05 + 4.95 * U(rng);
+  const Vec3<double> c = {0.5 * U(rng), 0.5 * U(rng), 0.5 * U(rng)};
+  const Mat3<double> R = random_transform(rng).R;
+  const double d[3] = {0.1 + 0.09 * U(rng), 0.1 + 0.09 * U(rng), 0.02 + 0.01 * U(rng)};
+  Inertia<double> I;
+  I.m = m;
+  I.h = {m * c.x, m * c.y, m * c.z};
+  const double cc[3] = {c.x, c.y, c.z};
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) {
+      double v = 0;
+      for (int j = 0; j < 3; ++j) v += R(r, j) * d[j] * R(k, j);
+      // about the frame origin: + m (|c|² 1 - c cᵀ)
+      v += m * ((r == k ? cc[0] * cc[0] + cc[1] * cc[1] + cc[2] * cc[2] : 0.0) - cc[r] * cc[k]);
+      I.I(r, k) = v;
+    }
+  return I;
+}
+
+}  // namespace
+
+TEST(HostAvx, InertiaTransformIsTheScalarForm) {
+  if (!cpu_has_avx2()) GTEST_SKIP() << "this processor has no AVX2";
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Transform<double> X = random_transform(rng);
+    const Inertia<double> I = random_inertia(rng);
+    const Inertia<double> got = transform_inertia(X, I);  // the AVX form (double)
+    Inertia<long double> Il;
+    Il.m = I.m;
+    Il.h = {I.h.x, I.h.y, I.h.z};
+    for (int k = 0; k < 9; ++k) Il.I.m[k] = I.I.m[k];
+    const Inertia<long double> ref = transform_inertia(transform_as<long double>(X), Il);  // the scalar form
+    const double scale = std::fabs(ref.I(0, 0)) + std::fabs(ref.I(1, 1)) + std::fabs(ref.I(2, 2));
+    EXPECT_EQ(got.m, I.m);
+    EXPECT_NEAR(got.h.x, double(ref.h.x), 1e-14 * I.m);
+    EXPECT_NEAR(got.h.y, double(ref.h.y), 1e-14 * I.m);
+    EXPECT_NEAR(got.h.z, double(ref.h.z), 1e-14 * I.m);
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_NEAR(got.I(r, k), double(ref.I(r, k)), 1e-14 * scale) << trial << " (" << r << ", " << k << ")";
+        EXPECT_EQ(got.I(r, k), got.I(k, r));  // symmetric exactly, as the scalar form's
+      }
+  }
+}
+
+TEST(HostAvx, ColumnTransformsAreForceTransforms) {
+  if (!cpu_has_avx2()) GTEST_SKIP() << "this processor has no AVX2";
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (int n = 0; n <= 9; ++n)
+    for (int trial = 0; trial < 50; ++trial) {
+      const Transform<double> X = random_transform(rng);
+      // n columns with a guard entry on either side, which the transform must leave alone
+      std::vector<double> buf(6 * n + 2);
+      for (auto& x : buf) x = 10 * U(rng);
+      const std::vector<double> before = buf;
+      crba_act_columns(X, buf.data() + 1, n);  // the AVX form (double)
+      EXPECT_EQ(buf.front(), before.front());
+      EXPECT_EQ(buf.back(), before.back());
+      const Transform<long double> Xl = transform_as<long double>(X);
+      for (int c = 0; c < n; ++c) {
+        const double* f = before.data() + 1 + 6 * c;
+        const Force<long double> F = Xl.act(Force<long double>{{f[0], f[1], f[2]}, {f[3], f[4], f[5]}});
+        const long double ref[6] = {F.lin.x, F.lin.y, F.lin.z, F.ang.x, F.ang.y, F.ang.z};
+        for (int k = 0; k < 6; ++k)
+          EXPECT_NEAR(buf[1 + 6 * c + k], double(ref[k]), 1e-13) << "n " << n << ", column " << c << ", entry " << k;
+      }
+    }
+}
