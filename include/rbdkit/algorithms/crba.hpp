@@ -56,32 +56,79 @@ inline void crba_act_columns_avx(const Transform<double>& X, double* F, int n) {
 }
 #endif
 
-// F_c <- X* F_c for the n columns F (n x 6 row-major). Where X turns about its z axis alone (R's
-// third row and column are e_z: a joint about z whose placement is not turned, or no turn at all;
-// 40 of floating Atlas's 150 column transforms, 4 of fixed HyQ's 12), R's products drop to its
-// 2 x 2 block: 24 operations a column where the general transform takes 42, with the same values
-// for finite columns up to the sign of a zero (the dropped terms are products by exact zeros and by
-// one). The test reads a real scalar's values; a pack or a dual number takes the general path.
-// In double under AVX (crba_act_columns_avx) every column goes through 4-lane vectors instead
+// F <- X* F for one column x[0..6) (its components l0 l1 l2 a0 a1 a2; or, V a vector, a column per
+// lane) from X's R (row-major) and p as values of C (S, or S in every lane of V), with Transform::act's
+// operations in their order, or where X turns about its z axis alone (z_turn: turns_about_z) with R's
+// 2 x 2 block (crba_act_columns below)
+template <typename C, typename V>
+RBD_HD_INLINE void crba_act_lanes(const C* R, const C& px, const C& py, const C& pz, bool z_turn, V* x) {
+  V l0, l1, l2, a0, a1, a2;
+  if (z_turn) {
+    l0 = R[0] * x[0] + R[1] * x[1], l1 = R[3] * x[0] + R[4] * x[1], l2 = x[2];
+    a0 = R[0] * x[3] + R[1] * x[4], a1 = R[3] * x[3] + R[4] * x[4], a2 = x[5];
+  } else {
+    l0 = (R[0] * x[0] + R[1] * x[1]) + R[2] * x[2];
+    l1 = (R[3] * x[0] + R[4] * x[1]) + R[5] * x[2];
+    l2 = (R[6] * x[0] + R[7] * x[1]) + R[8] * x[2];
+    a0 = (R[0] * x[3] + R[1] * x[4]) + R[2] * x[5];
+    a1 = (R[3] * x[3] + R[4] * x[4]) + R[5] * x[5];
+    a2 = (R[6] * x[3] + R[7] * x[4]) + R[8] * x[5];
+  }
+  x[0] = l0, x[1] = l1, x[2] = l2;
+  x[3] = a0 + (py * l2 - pz * l1), x[4] = a1 + (pz * l0 - px * l2), x[5] = a2 + (px * l1 - py * l0);
+}
+
+// whether R turns about its z axis alone (its third row and column are e_z)
+template <typename S> RBD_HD_INLINE bool turns_about_z(const Mat3<S>& R) {
+  return R(0, 2) == S(0) && R(1, 2) == S(0) && R(2, 0) == S(0) && R(2, 1) == S(0) && R(2, 2) == S(1);
+}
+
+#if defined(RBD_HOST_LANES) && !defined(RBD_HOST_AVX) && defined(__SSE2__)
+#define RBD_CRBA_COLUMN_PAIRS 1
+// crba_act_columns in double on an x86-64 without AVX (the library's baseline, the benchmark's
+// generic rows): two columns at a time, lane l of each 2-lane vector a component of column c + l, so
+// that each lane runs the scalar form's operations in their order (crba_act_lanes: without fused
+// multiply-adds the columns are the scalar loop's bit for bit) and an operation serves two columns:
+// 42 vector operations and 24 moves for two columns where the scalar form takes 42 operations and 12
+// moves for one
+inline void crba_act_column_pairs(const Transform<double>& X, double* F, int n) {
+  typedef double V __attribute__((vector_size(16)));
+  const bool z_turn = turns_about_z(X.R);
+  const double* R = X.R.m;
+  int c = 0;
+  if (n >= 2) {
+    V r[9];  // R and p in both lanes, once for the subtree's columns
+    for (int k = 0; k < 9; ++k) r[k] = V{R[k], R[k]};
+    const V px = {X.p.x, X.p.x}, py = {X.p.y, X.p.y}, pz = {X.p.z, X.p.z};
+    for (; c + 2 <= n; c += 2) {
+      double* f = F + 6 * c;  // column c, then column c + 1
+      V x[6];
+      for (int k = 0; k < 6; ++k) x[k] = V{f[k], f[6 + k]};
+      crba_act_lanes(r, px, py, pz, z_turn, x);
+      for (int k = 0; k < 6; ++k) f[k] = x[k][0], f[6 + k] = x[k][1];
+    }
+  }
+  if (c < n) crba_act_lanes(R, X.p.x, X.p.y, X.p.z, z_turn, F + 6 * c);
+}
+#endif
+
+// F_c <- X* F_c for the n columns F (n x 6 row-major), crba_act_lanes column by column. Where X turns
+// about its z axis alone (R's third row and column are e_z: a joint about z whose placement is not
+// turned, or no turn at all; 40 of floating Atlas's 150 column transforms, 4 of fixed HyQ's 12), R's
+// products drop to its 2 x 2 block: 24 operations a column where the general transform takes 42, with
+// the same values for finite columns up to the sign of a zero (the dropped terms are products by exact
+// zeros and by one). The test reads a real scalar's values; a pack or a dual number takes the general
+// form. In double under AVX (crba_act_columns_avx) every column goes through 4-lane vectors instead,
+// and on an x86-64 without AVX two columns at a time (crba_act_column_pairs)
 template <typename S> RBD_HD void crba_act_columns(const Transform<S>& X, S* F, int n) {
 #if defined(RBD_HOST_AVX)
   if constexpr (std::is_same<S, double>::value) return crba_act_columns_avx(X, F, n);
+#elif defined(RBD_CRBA_COLUMN_PAIRS)
+  if constexpr (std::is_same<S, double>::value) return crba_act_column_pairs(X, F, n);
 #endif
-  const Mat3<S>& R = X.R;
-  if constexpr (std::is_floating_point<S>::value) {
-    if (R(0, 2) == S(0) && R(1, 2) == S(0) && R(2, 0) == S(0) && R(2, 1) == S(0) && R(2, 2) == S(1)) {
-      const S r00 = R(0, 0), r01 = R(0, 1), r10 = R(1, 0), r11 = R(1, 1);
-      const Vec3<S> p = X.p;
-      for (int c = 0; c < n; ++c) {
-        S* f = F + 6 * c;
-        const Vec3<S> fl = {r00 * f[0] + r01 * f[1], r10 * f[0] + r11 * f[1], f[2]};
-        const Vec3<S> fa = Vec3<S>{r00 * f[3] + r01 * f[4], r10 * f[3] + r11 * f[4], f[5]} + cross(p, fl);
-        store(Force<S>{fl, fa}, f);
-      }
-      return;
-    }
-  }
-  for (int c = 0; c < n; ++c) store(X.act(load_force(F + 6 * c)), F + 6 * c);
+  bool z_turn = false;
+  if constexpr (std::is_floating_point<S>::value) z_turn = turns_about_z(X.R);
+  for (int c = 0; c < n; ++c) crba_act_lanes(X.R.m, X.p.x, X.p.y, X.p.z, z_turn, F + 6 * c);
 }
 
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from

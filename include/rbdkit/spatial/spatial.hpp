@@ -203,36 +203,44 @@ template <typename S> struct Inertia {
   RBD_HD Inertia& operator+=(const Inertia& o) { m += o.m; h += o.h; I = I + o.I; return *this; }
 };
 
-#if defined(RBD_HOST_AVX)
-// transform_inertia in double under AVX: R's columns, u, w, g and I's rows as 4-lane vectors (the
-// fourth lane idle), each entry with the scalar form's operations in its order; the lower triangle is
-// the upper's, as there. About half the instructions of the scalar form (a -march=native instance)
-inline Inertia<double> transform_inertia_avx(const Transform<double>& X, const Inertia<double>& Ib) {
-  typedef double V __attribute__((vector_size(32)));
+#if defined(RBD_HOST_LANES) && defined(__SSE2__)
+#define RBD_TRANSFORM_INERTIA_PAIRS 1
+// transform_inertia in double on an x86-64 host (the library's SSE2 baseline and an instance's
+// -march=native alike; 2-lane vectors serve both better than 4-lane ones, whose gathers and broadcasts
+// took 45 of their 120 instructions: 8.9 ns where those took 10.8 under AVX): the 3-vectors as a
+// 2-lane vector of their entries 0 and 1 and a scalar entry 2, and I's six entries as three pairs of
+// lanes, (0,0) (0,1), then (0,2) (1,2), then (1,1) (2,2), each lane with the scalar form's operations
+// in their order (so that in the baseline, which has no fused multiply-add to contract them into, the
+// result is the scalar form's bit for bit): 53 vector and 28 scalar operations where the scalar form
+// takes about 135
+inline Inertia<double> transform_inertia_pairs(const Transform<double>& X, const Inertia<double>& Ib) {
+  typedef double V __attribute__((vector_size(16)));
   const double* R = X.R.m;
   const double* I = Ib.I.m;
-  const V r0 = {R[0], R[3], R[6], 0}, r1 = {R[1], R[4], R[7], 0}, r2 = {R[2], R[5], R[8], 0};
-  const V p = {X.p.x, X.p.y, X.p.z, 0};
-  const double m = Ib.m, f = I[8];
+  const double m = Ib.m, hm = 0.5 * m, f = I[8];
+  const double a2 = 0.5 * (I[0] - f), d2 = 0.5 * (I[4] - f), b = I[1], c = I[2], e = I[5];
+  // R's columns r0, r1, r2 and p: entries 0 and 1 (v) and entry 2
+  const V r0 = {R[0], R[3]}, r1 = {R[1], R[4]}, r2 = {R[2], R[5]}, p = {X.p.x, X.p.y};
+  const double r0_2 = R[6], r1_2 = R[7], r2_2 = R[8], p_2 = X.p.z;
   const V hr = (r0 * Ib.h.x + r1 * Ib.h.y) + r2 * Ib.h.z;
-  const V g = hr + (0.5 * m) * p;
-  const double a2 = 0.5 * (I[0] - f), d2 = 0.5 * (I[4] - f);
-  const V u = (a2 * r0 + I[1] * r1) + I[2] * r2;
-  const V w = d2 * r1 + I[5] * r2;
-  const double diag = f + 2.0 * (g[0] * p[0] + g[1] * p[1] + g[2] * p[2]);
+  const double hr_2 = (r0_2 * Ib.h.x + r1_2 * Ib.h.y) + r2_2 * Ib.h.z;
+  const V g = hr + hm * p, u = (a2 * r0 + b * r1) + c * r2, w = d2 * r1 + e * r2;
+  const double g_2 = hr_2 + hm * p_2, u_2 = (a2 * r0_2 + b * r1_2) + c * r2_2, w_2 = d2 * r1_2 + e * r2_2;
+  const double diag = f + 2.0 * ((g[0] * X.p.x + g[1] * X.p.y) + g_2 * p_2);
+  // entry (r, k): (r0_r u_k + u_r r0_k) + (r1_r w_k + w_r r1_k) - (p_r g_k + g_r p_k) [+ diag]
+  const V e00_01 = (((R[0] * u + u[0] * r0) + (R[1] * w + w[0] * r1)) - (X.p.x * g + g[0] * p)) + V{diag, 0.0};
+  const V e02_12 = (((r0 * u_2 + u * r0_2) + (r1 * w_2 + w * r1_2)) - (p * g_2 + g * p_2)) + 0.0;
+  const V r0_12 = {R[3], r0_2}, r1_12 = {R[4], r1_2}, p_12 = {X.p.y, p_2};
+  const V u_12 = {u[1], u_2}, w_12 = {w[1], w_2}, g_12 = {g[1], g_2};
+  const V e11_22 =
+      (((r0_12 * u_12 + u_12 * r0_12) + (r1_12 * w_12 + w_12 * r1_12)) - (p_12 * g_12 + g_12 * p_12)) + diag;
   const V h = hr + m * p;
-  V row[3];
-  for (int r = 0; r < 3; ++r) {
-    // entry (r, k) in lane k: (r0_r u_k + u_r r0_k) + (r1_r w_k + w_r r1_k) - (p_r g_k + g_r p_k)
-    const V a = r0[r] * u + u[r] * r0, b = r1[r] * w + w[r] * r1, c = p[r] * g + g[r] * p;
-    row[r] = (a + b) - c;
-  }
   Inertia<double> out;
   out.m = m;
-  out.h = {h[0], h[1], h[2]};
+  out.h = {h[0], h[1], hr_2 + m * p_2};
   double* o = out.I.m;
-  o[0] = row[0][0] + diag, o[4] = row[1][1] + diag, o[8] = row[2][2] + diag;
-  o[1] = o[3] = row[0][1] + 0.0, o[2] = o[6] = row[0][2] + 0.0, o[5] = o[7] = row[1][2] + 0.0;
+  o[0] = e00_01[0], o[1] = o[3] = e00_01[1], o[2] = o[6] = e02_12[0];
+  o[4] = e11_22[0], o[5] = o[7] = e02_12[1], o[8] = e11_22[1];
   return out;
 }
 #endif
@@ -251,8 +259,8 @@ inline Inertia<double> transform_inertia_avx(const Transform<double>& X, const I
 // axis) is then relatively less exact (a rod along x turned about x: I_xx to 5e-5 in float32,
 // where it was 5e-8; the matrix as a whole to ε·|I| either way)
 template <typename S> RBD_HD_INLINE Inertia<S> transform_inertia(const Transform<S>& X, const Inertia<S>& Ib) {
-#if defined(RBD_HOST_AVX)
-  if constexpr (std::is_same<S, double>::value) return transform_inertia_avx(X, Ib);
+#if defined(RBD_TRANSFORM_INERTIA_PAIRS)
+  if constexpr (std::is_same<S, double>::value) return transform_inertia_pairs(X, Ib);
 #endif
   const Mat3<S>& R = X.R;
   const S m = Ib.m;

@@ -1,8 +1,11 @@
-// The AVX forms of the spatial transforms (RBD_HOST_AVX: what a per-robot instance compiled with
-// -march=native takes; spatial.hpp's transform_inertia_avx, crba.hpp's crba_act_columns_avx), this
-// file being compiled with -mavx2: each against the scalar form in long double, which the
-// double-only AVX forms do not take. (The instances themselves are checked against the library
-// in test_specialize.cpp.) On a processor without AVX2 they skip, except under CI=true, where they fail.
+// The host vector forms of the spatial transforms, each against the scalar form in long double
+// (which the double-only vector forms do not take; the instances themselves are checked against the
+// library in test_specialize.cpp). This file is compiled twice, headers only:
+//   - rbdkit_host_lanes_tests, for x86-64's baseline (SSE2), as the library is: spatial.hpp's
+//     transform_inertia_pairs and crba.hpp's crba_act_column_pairs (2-lane vectors);
+//   - rbdkit_host_avx_tests, with -mavx2 (RBD_HOST_AVX: what a per-robot instance compiled with
+//     -march=native takes): transform_inertia_pairs again and crba_act_columns_avx (4-lane vectors).
+// The AVX forms skip on a processor without AVX2, except under CI=true, where they fail.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,14 +16,19 @@
 
 #include "rbdkit/algorithms/crba.hpp"
 
-#if !defined(RBD_HOST_AVX)
-#error "test_host_avx.cpp must be compiled with AVX (-mavx2): RBD_HOST_AVX is not defined"
+#if defined(RBD_HOST_AVX)
+#define HOST_LANES HostAvx
+#elif defined(RBD_CRBA_COLUMN_PAIRS) && defined(RBD_TRANSFORM_INERTIA_PAIRS)
+#define HOST_LANES HostLanes
+#else
+#error "test_host_lanes.cpp: neither the AVX forms (-mavx2) nor the 2-lane forms (x86-64 with GCC or clang) are compiled"
 #endif
 
 using namespace rbd;
 
 namespace {
 
+#if defined(RBD_HOST_AVX)
 bool cpu_has_avx2() { return __builtin_cpu_supports("avx2"); }
 // the AVX forms cannot run on a processor without AVX2 (an illegal instruction); CI's machines have it,
 // so there a missing AVX2 is a failure, not a skip
@@ -32,6 +40,11 @@ bool cpu_has_avx2() { return __builtin_cpu_supports("avx2"); }
       GTEST_SKIP() << "this processor has no AVX2";                                   \
     }                                                                                 \
   } while (0)
+#else
+#define RBD_REQUIRE_AVX2() \
+  do {                     \
+  } while (0)
+#endif
 
 template <typename T> Transform<T> transform_as(const Transform<double>& X) {
   Transform<T> o;
@@ -75,13 +88,13 @@ Inertia<double> random_inertia(std::mt19937& rng) {
 
 }  // namespace
 
-TEST(HostAvx, InertiaTransformIsTheScalarForm) {
+TEST(HOST_LANES, InertiaTransformIsTheScalarForm) {
   RBD_REQUIRE_AVX2();
   std::mt19937 rng(5);
   for (int trial = 0; trial < 2000; ++trial) {
     const Transform<double> X = random_transform(rng);
     const Inertia<double> I = random_inertia(rng);
-    const Inertia<double> got = transform_inertia(X, I);  // the AVX form (double)
+    const Inertia<double> got = transform_inertia(X, I);  // the 2-lane form (double)
     Inertia<long double> Il;
     Il.m = I.m;
     Il.h = {I.h.x, I.h.y, I.h.z};
@@ -100,18 +113,24 @@ TEST(HostAvx, InertiaTransformIsTheScalarForm) {
   }
 }
 
-TEST(HostAvx, ColumnTransformsAreForceTransforms) {
+TEST(HOST_LANES, ColumnTransformsAreForceTransforms) {
   RBD_REQUIRE_AVX2();
   std::mt19937 rng(6);
   std::uniform_real_distribution<double> U(-1, 1);
   for (int n = 0; n <= 9; ++n)
     for (int trial = 0; trial < 50; ++trial) {
-      const Transform<double> X = random_transform(rng);
+      Transform<double> X = random_transform(rng);
+      if (trial % 4 == 1) {  // a turn about z alone (turns_about_z: the 2 x 2 form), exactly
+        const double a = 3.0 * U(rng), c = std::cos(a), s = std::sin(a);
+        X.R = Mat3<double>::identity();
+        X.R(0, 0) = c, X.R(0, 1) = -s, X.R(1, 0) = s, X.R(1, 1) = c;
+        ASSERT_TRUE(turns_about_z(X.R));
+      }
       // n columns with a guard entry on either side, which the transform must leave alone
       std::vector<double> buf(6 * n + 2);
       for (auto& x : buf) x = 10 * U(rng);
       const std::vector<double> before = buf;
-      crba_act_columns(X, buf.data() + 1, n);  // the AVX form (double)
+      crba_act_columns(X, buf.data() + 1, n);  // the vector form (double): AVX or 2-lane
       EXPECT_EQ(buf.front(), before.front());
       EXPECT_EQ(buf.back(), before.back());
       const Transform<long double> Xl = transform_as<long double>(X);
