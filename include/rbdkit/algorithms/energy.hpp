@@ -51,10 +51,11 @@ template <typename S> RBD_HD S potential_energy(const ModelView<S>& m, Workspace
 //   writes w.X_parent, w.X_world, w.S_world, w.v (world), w.Ic, w.h, w.B (per body)
 template <typename S>
 RBD_HD void momentum_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd) {
+  place_joints(m, w.X_parent, q);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // X_0i = X_0λ X_λi, s = X_0i S, v_i = v_λ + s qd
-    world_placement(m, w, q, i);
+    placed_world(m, w, i);
     world_motion(m, w, i, qd, static_cast<const S*>(nullptr), S(0), false, false);
     const Motion<S>& v = w.v[i];
     // body inertia, momentum and inertia rate in the world frame

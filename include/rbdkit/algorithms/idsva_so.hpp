@@ -250,9 +250,9 @@ RBD_HD void idsva_so_world_frame(const ModelView<S>& m, Workspace<S>& w, const S
 template <typename S>
 RBD_HD void idsva_so_body_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                        S gravity) {
+  place_joints(m, w.X_parent, q);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    w.X_parent[i] = body_transform(b, q);
     Motion<S> vp = Motion<S>::zero(), ap = Motion<S>::zero();
     if (b.parent >= 0) {
       vp = w.X_parent[i].act_inv(w.v[b.parent]);

@@ -37,10 +37,10 @@ enum ReferenceFrame : int {
 // and, when qd is not null, w.v (body velocity in the body frame).
 //   q (nq), qd (nv or null)
 template <typename S> RBD_HD void forward_kinematics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd) {
+  place_joints(m, w.X_parent, q);  // X_λi
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
-    // X_λi, X_0i = X_0λ X_λi
-    w.X_parent[i] = body_transform(b, q);
+    // X_0i = X_0λ X_λi
     w.X_world[i] = b.parent >= 0 ? w.X_world[b.parent] * w.X_parent[i] : w.X_parent[i];
     // v_i = X_λi⁻¹ v_λ + S qd
     if (!qd) continue;

@@ -70,8 +70,9 @@ template <typename S> RBD_HD Force<S> inertia_rate(const Inertia<S>& I, const Mo
 template <typename S>
 RBD_HD void regressor_forward_pass(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* qdd,
                                    S gravity, bool sens) {
+  place_joints(m, w.X_parent, q);
   for (int i = 0; i < m.nb; ++i) {
-    world_placement(m, w, q, i);
+    placed_world(m, w, i);
     world_motion(m, w, i, qd, qdd, gravity, true, sens);
   }
 }
@@ -231,10 +232,10 @@ RBD_HD bool forward_dynamics_parameter_gradient(const ModelView<S>& m, Workspace
 template <typename S>
 RBD_HD void kinetic_energy_regressor(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, S* y) {
   const S half = S(0.5);
+  place_joints(m, w.X_parent, q);
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     // body velocity: v_i = X⁻¹ v_λ + S qd
-    w.X_parent[i] = body_transform(b, q);
     const Motion<S> vJ = joint_motion(b, qd + b.v_idx);
     w.v[i] = b.parent >= 0 ? w.X_parent[i].act_inv(w.v[b.parent]) + vJ : vJ;
     const Vec3<S>& v = w.v[i].lin;
@@ -254,8 +255,9 @@ RBD_HD void kinetic_energy_regressor(const ModelView<S>& m, Workspace<S>& w, con
 //   writes w.X_parent, w.X_world, y (10 nb)
 template <typename S>
 RBD_HD void potential_energy_regressor(const ModelView<S>& m, Workspace<S>& w, const S* q, S gravity, S* y) {
+  place_joints(m, w.X_parent, q);
   for (int i = 0; i < m.nb; ++i) {
-    world_placement(m, w, q, i, false);
+    placed_world(m, w, i, false);
     const Transform<S>& X = w.X_world[i];
     S* o = y + 10 * i;
     o[0] = -gravity * X.p.z;

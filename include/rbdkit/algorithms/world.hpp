@@ -43,14 +43,6 @@ RBD_HD void placed_world(const ModelView<S>& m, Workspace<S>& w, int i, bool wit
     for (int k = 0; k < b.nv; ++k) w.S_world[6 * i + k] = joint_subspace_col_in(b, w.X_world[i], k);
 }
 
-// X_λi and X_0i of body i (placed_world).  writes w.X_parent, w.X_world [, w.S_world]
-template <typename S>
-RBD_HD void world_placement(const ModelView<S>& m, Workspace<S>& w, const S* q, int i, bool with_subspace = true,
-                            bool leave_world = true) {
-  w.X_parent[i] = body_transform(m.body[i], q);
-  placed_world(m, w, i, with_subspace, leave_world);
-}
-
 // body i's inertia in the reference frame (a root in_root_frame's is its own, not transformed)
 template <typename S>
 RBD_HD Inertia<S> reference_inertia(const ModelView<S>& m, const Workspace<S>& w, int i, bool leave_world) {
@@ -60,7 +52,7 @@ RBD_HD Inertia<S> reference_inertia(const ModelView<S>& m, const Workspace<S>& w
 
 // X_0i, the subspace columns and the body inertias of every body in the reference frame from the
 // w.X_parent that a pass left (rnea's, crba's), without placing the joints again: what
-// world_placement and reference_inertia write body by body.  writes w.X_world, w.S_world, w.Ic
+// placed_world and reference_inertia write body by body.  writes w.X_world, w.S_world, w.Ic
 template <typename S> RBD_HD void reference_placements(const ModelView<S>& m, Workspace<S>& w, bool leave_world) {
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) {
@@ -118,7 +110,7 @@ RBD_HD void motion_sensitivities(const ModelView<S>& m, Workspace<S>& w, int i, 
 }
 
 // velocity v_i = v_λ + s qd and, when with_acc, acceleration a_i = a_λ + s qdd + v_i × s qd (a_0 = -g;
-// qdd null: zero) in the reference frame (leave_world: as world_placement's); sens: the column
+// qdd null: zero) in the reference frame (leave_world: as placed_world's); sens: the column
 // sensitivities (motion_sensitivities).  reads w.S_world of body i; writes w.v [, w.a, w.dVdq, w.dAdq, w.dAdv]
 template <typename S>
 RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S* qd, const S* qdd, S gravity,
@@ -131,9 +123,10 @@ RBD_HD void world_motion(const ModelView<S>& m, Workspace<S>& w, int i, const S*
   if (sens) motion_sensitivities(m, w, i, vp, ap);
 }
 
-// world_placement of every body on a team (model/team.hpp): the joint transforms X_λi side by side,
-// the chain X_0i = X_0λ X_λi on one thread, then each body's subspace columns (with_subspace) and
-// then_each(i) side by side. The same values as world_placement body by body (leave_world as its)
+// place_joints and placed_world of every body on a team (model/team.hpp): the joint transforms X_λi
+// side by side, the chain X_0i = X_0λ X_λi on one thread, then each body's subspace columns
+// (with_subspace) and then_each(i) side by side. The same values as place_joints and placed_world body
+// by body (leave_world as its)
 template <typename S, typename Team, typename F>
 RBD_HD void world_placements_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, const S* q,
                                   bool with_subspace, F&& then_each, bool leave_world = true) {

@@ -261,10 +261,8 @@ struct InverseDynamicsBpass {
       2, {array("q", shape(kNq), kConfiguration), array("f", shape(kNb, 6))},
       2, {{"tau", shape(kNv)}, {"f_joint", shape(kNb, 6)}}, 0b11, 0, kLinear, kScratchNv, kNotPositiveDefinite};
   template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
-    for (int i = 0; i < m.nb; ++i) {
-      w.X_parent[i] = body_transform(m.body[i], a.in[0]);
-      w.f[i] = load_force(a.in[1] + 6 * i);
-    }
+    place_joints(m, w.X_parent, a.in[0]);
+    for (int i = 0; i < m.nb; ++i) w.f[i] = load_force(a.in[1] + 6 * i);
     rnea_backward_pass(m, w, a.out[0] ? a.out[0] : a.scratch);
     if (a.out[1])
       for (int i = 0; i < m.nb; ++i) store(w.f[i], a.out[1] + 6 * i);

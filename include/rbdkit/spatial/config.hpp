@@ -51,10 +51,12 @@
 #endif
 // the single-sample code's own vectors on the host (GCC/clang vector extensions; the batch engine's
 // packs, batch/simd.hpp, run across samples instead): RBD_HOST_LANES doubles of RBD_HOST_VECTOR_BYTES
-// (the joints' sin and cos, joint_types.hpp's place_joints), and under AVX (RBD_HOST_AVX: a per-robot
-// instance compiled with -march=native) 4-lane 3-vectors for the spatial transforms (spatial.hpp's
-// transform_inertia, crba.hpp's column transforms), each lane with the scalar form's operations in its
-// order. Not in CUDA sources, whose host pass keeps the scalar forms
+// (the joints' sin and cos, joint_types.hpp's place_joints); on x86-64, 2-lane vectors for the inertia
+// transform (spatial.hpp's transform_inertia_pairs) and, without AVX, for CRBA's column transforms two
+// columns at a time (crba.hpp's crba_act_column_pairs); under AVX (RBD_HOST_AVX: a per-robot instance
+// compiled with -march=native) 4-lane 3-vectors for those column transforms (crba_act_columns_avx).
+// Each lane has the scalar form's operations in its order. Not in CUDA sources, whose host pass keeps
+// the scalar forms
 #if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
 #define RBD_HOST_LANES (RBD_HOST_VECTOR_BYTES / 8)
 #if defined(__AVX__)
