@@ -14,7 +14,9 @@
 //   * bad arguments (threads, dtype, array type, B, integrator type, dt);
 //   * an output that overflows is named (output, first sample) at any thread
 //     count; the pool's hand-off under churn (made / destroyed, asleep, two
-//     callers) gives the one-thread results.
+//     callers) gives the one-thread results; the pool on its own runs every
+//     unit of every job once, on the threads the job counts in, across
+//     jobs of fewer threads and past the wrap of its claims' epoch tag.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -24,6 +26,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <random>
 #include <stdexcept>
 #include <thread>
@@ -35,6 +38,7 @@
 #include "rbdkit/batch/simd.hpp"
 #include "rbdkit/plant/integrators.hpp"
 #include "rbdkit/spatial/dual.hpp"
+#include "pool.hpp"
 #include "test_models.hpp"
 
 using rbd::Engine;
@@ -572,4 +576,47 @@ TEST(Engine, PoolHandOffUnderChurn) {
   a.join();
   b.join();
   EXPECT_EQ(wrong.load(), 0);
+}
+
+// the pool alone: every unit of a job runs once, on threads 0 .. active - 1
+// only, for job sizes around the thread count, jobs of fewer threads than the
+// pool (their shares left alone), jobs after the workers have gone to sleep,
+// and a share untouched for exactly 2^kTagBits jobs (its claim word then
+// carries the current job's tag: the pool must reset it, or that share's
+// units would look taken)
+TEST(Engine, PoolRunsEveryUnitOnce) {
+  using rbd::engine_detail::Pool;
+  struct Count {
+    std::unique_ptr<std::atomic<int>[]> runs;
+    int active;
+    std::atomic<int> outside{0};
+  };
+  const Pool::Fn job = [](void* ctx, int t, Pool::Claims& claims) {
+    Count& k = *static_cast<Count*>(ctx);
+    if (t >= k.active) ++k.outside;
+    long u0, u1;
+    while (claims.next(u0, u1))
+      for (long u = u0; u < u1; ++u) k.runs[u].fetch_add(1, std::memory_order_relaxed);
+  };
+  Pool pool(4);
+  auto check = [&](int active, long units) {
+    Count k{std::unique_ptr<std::atomic<int>[]>(new std::atomic<int>[units]()), static_cast<int>(std::min<long>(active, units))};
+    pool.run(active, units, job, &k);
+    long wrong = 0;
+    for (long u = 0; u < units; ++u) wrong += k.runs[u].load() != 1;
+    return wrong == 0 && k.outside.load() == 0;
+  };
+  for (int round = 0; round < 200; ++round)
+    for (int active : {1, 2, 3, 4, 6})
+      for (long units : {1L, 2L, 3L, 5L, 64L, 1000L}) ASSERT_TRUE(check(active, units)) << active << " " << units;
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));  // the workers are asleep now
+  ASSERT_TRUE(check(4, 1000));
+  // shares 1..3 exhausted at some job e0, then 2^kTagBits - 1 jobs on thread 0 alone: the next job's
+  // tag equals e0's, and its (smaller) shares would read as taken
+  ASSERT_TRUE(check(4, 4000));
+  Count idle{std::unique_ptr<std::atomic<int>[]>(new std::atomic<int>[1]()), 1};
+  for (long j = 0; j < (1L << Pool::kTagBits) - 1; ++j) pool.run(1, 1, job, &idle);
+  EXPECT_EQ(idle.runs[0].load(), (1L << Pool::kTagBits) - 1);
+  EXPECT_TRUE(check(4, 400));
+  EXPECT_TRUE(check(4, 4000));
 }

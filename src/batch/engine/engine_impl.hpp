@@ -17,11 +17,13 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -76,24 +78,32 @@ template <> struct Width<float> { static constexpr int value = RBDKIT_ENGINE_W32
 // inputs, outputs and scratch (64-byte aligned). The workspace has the
 // linear layout until an operation needs the full one, and keeps the full
 // one from then on (a full workspace serves every operation).
-template <typename P> struct ThreadBuffer {
+//
+// Thread t's buffer is read by thread t in every call, and set up by the
+// caller before it; reserve() writes it only when it changes (a new layout
+// or more memory), so that the worker's cached copy stays valid from call to
+// call. Each buffer has cache lines of its own.
+template <typename P> struct alignas(64) ThreadBuffer {
   std::unique_ptr<unsigned char[]> mem;
   unsigned long bytes = 0, ws_bytes = 0;
   WorkspaceLayout layout = kLinearWorkspace;
+  bool carved = false;
   Workspace<P> ws;
   unsigned char* base = nullptr;
 
   void reserve(int nb, int nv, long values, WorkspaceLayout need_layout) {
-    if (need_layout == kFullWorkspace) layout = kFullWorkspace;
-    ws_bytes = (workspace_bytes<P>(nb, nv, layout) + 63ul) & ~63ul;
+    const bool relayout = need_layout == kFullWorkspace && layout != kFullWorkspace;
+    if (relayout) layout = kFullWorkspace;
+    if (relayout || !carved) ws_bytes = (workspace_bytes<P>(nb, nv, layout) + 63ul) & ~63ul;
     const unsigned long need = ws_bytes + sizeof(P) * static_cast<unsigned long>(values) + 64;
-    if (need > bytes) {
+    const bool grow = need > bytes;
+    if (grow) {
       mem.reset(new unsigned char[need]);
       bytes = need;
       const auto addr = reinterpret_cast<std::uintptr_t>(mem.get());
       base = mem.get() + ((64 - addr % 64) % 64);
     }
-    ws = carve_workspace<P>(base, nb, nv, layout);
+    if (grow || relayout || !carved) ws = carve_workspace<P>(base, nb, nv, layout), carved = true;
   }
   P* values() { return reinterpret_cast<P*>(base + ws_bytes); }
 };
@@ -110,11 +120,41 @@ template <typename T> struct Out {
   long w = 0;
 };
 
-// thread t's share of a call's packs, [next, end): claimed from the front by t, and by the others once
-// their own is done (Job::claim); a cache line each
-struct alignas(64) HomeRange {
-  std::atomic<long> next{0};
-  long end = 0;
+// a call as the threads read it: its arrays and parameters, the same for
+// every registered operation (the ones it lacks are empty). The engine keeps
+// one, and a call writes only the cache lines of it that change (publish),
+// so that a worker's copy of the rest stays valid: repeated calls on the
+// same arrays hand the worker nothing but the pool's job word.
+template <typename T> struct alignas(64) JobDesc {
+  long B, packs;
+  long first;  // the pool's unit u is pack first + u (a batch of more than Pool::kMaxUnits packs runs as several jobs)
+  In<T> in[ops::kMaxArgs];  // the arrays in argument order (a parameter's slot is empty)
+  Out<T> out[ops::kMaxOutputs];
+  T real[ops::kMaxArgs];  // the parameters, broadcast to every lane by each thread
+  int choice[ops::kMaxArgs];
+  const int* ee;
+  int n_ee;
+};
+// copy `from` over `to`, line by line, writing only the lines that differ
+template <typename D> void publish(D& to, const D& from) {
+  static_assert(std::is_trivially_copyable<D>::value && alignof(D) >= 64, "a job description");
+  auto* dst = reinterpret_cast<unsigned char*>(&to);
+  const auto* src = reinterpret_cast<const unsigned char*>(&from);
+  for (std::size_t k = 0; k < sizeof(D); k += 64) {
+    const std::size_t n = std::min<std::size_t>(64, sizeof(D) - k);
+    if (std::memcmp(dst + k, src + k, n) != 0) std::memcpy(dst + k, src + k, n);
+  }
+}
+// where a call's kernels failed, written by the threads only on failure
+struct alignas(64) JobFaults {
+  std::atomic<long> failed{-1};                   // the first sample of the first pack whose kernel failed
+  std::atomic<long> nonfinite[ops::kMaxOutputs];  // per output: the first sample with an inf or a NaN
+  JobFaults() { reset(); }
+  void reset() {  // without a write where nothing failed
+    if (failed.load(std::memory_order_relaxed) != -1) failed.store(-1, std::memory_order_relaxed);
+    for (std::atomic<long>& s : nonfinite)
+      if (s.load(std::memory_order_relaxed) != -1) s.store(-1, std::memory_order_relaxed);
+  }
 };
 
 template <typename T> struct EngineT : Engine::Impl {
@@ -124,11 +164,12 @@ template <typename T> struct EngineT : Engine::Impl {
   std::vector<BodyDesc<P>> bodies;
   ModelView<P> mv;
   std::vector<ThreadBuffer<P>> buffers;
-  std::unique_ptr<HomeRange[]> ranges;  // (threads), set by each call
+  JobDesc<T> job{};  // the current call (JobDesc)
+  JobFaults faults;
   Pool pool;
 
   EngineT(const Model& m, int t, const std::string& d)
-      : Engine::Impl(m, t, d, W), bodies(m.bodies_as<P>()), buffers(t), ranges(new HomeRange[t]), pool(t) {
+      : Engine::Impl(m, t, d, W), bodies(m.bodies_as<P>()), buffers(t), pool(t) {
     mv = {m.nb(), m.nq, m.nv, m.general_path() ? 1 : 0, bodies.data()};
   }
   unsigned long workspace_bytes() const override {
@@ -184,109 +225,80 @@ __attribute__((noinline)) bool run_pack_called(const ModelView<P>& m, Workspace<
   return run_kernel<Op, Defaults>(m, w, a);
 }
 
-// the registered operation Op (ops/registry.hpp) on B knot points: the
-// arrays in argument order (a parameter's slot is empty), the outputs in order
+// the registered operation Op (ops/registry.hpp) on the engine's current
+// call (EngineT::job), thread t's part
 template <typename T, typename Op> struct Job {
   using E = EngineT<T>;
   using P = typename E::P;
   static constexpr int W = E::W;
   static constexpr const ops::OpSpec& op = Op::spec;
 
-  E* e;
-  long B, packs;
-  int active;
-  In<T> in[ops::kMaxArgs];
-  Out<T> out[ops::kMaxOutputs];
-  ops::OpArgs<P> params{};               // the parameters (real, choice), broadcast to every lane
-  std::atomic<long> failed{-1};          // the first sample of the first pack whose kernel failed
-  std::atomic<long> nonfinite[ops::kMaxOutputs];  // per output: the first sample with an inf or a NaN
-  HomeRange* ranges = nullptr;           // (active): thread t's share of the packs, e->ranges
-
-  static void call(void* self, int t) { static_cast<Job*>(self)->work(t); }
-  // thread t's share: packs [t·packs/active, (t+1)·packs/active), the same from call to call, so that
-  // repeated calls on the same arrays find each thread's inputs and outputs in its own core's cache
-  void share(int t) {
-    ranges[t].next.store(t * packs / active, std::memory_order_relaxed);
-    ranges[t].end = (t + 1) * packs / active;
-  }
-  // the next packs [p0, p1) for thread t: guided chunks, half of what is left of its own share (at
-  // least one), then of the others' shares in turn, so that threads that start late or run slow still
-  // finish together, in O(active · log(packs)) claims
-  bool claim(int t, long& p0, long& p1) {
-    for (int k = 0; k < active; ++k) {
-      HomeRange& r = ranges[(t + k) % active];
-      long p = r.next.load(std::memory_order_relaxed);
-      while (p < r.end) {
-        const long n = std::max(1L, (r.end - p) / 2);
-        if (r.next.compare_exchange_weak(p, p + n, std::memory_order_relaxed)) {
-          p0 = p, p1 = p + n;
-          return true;
-        }
-      }
-    }
-    return false;
-  }
-  // thread t's share, on its own buffer; which thread runs a pack does not
+  static void call(void* engine, int t, Pool::Claims& claims) { work(*static_cast<E*>(engine), t, claims); }
+  // thread t's packs, on its own buffer; which thread runs a pack does not
   // change its result (every pack runs the same code from its own inputs)
-  void work(int t) {
-    ThreadBuffer<P>& buf = e->buffers[t];
-    // this thread's packed arrays: inputs, outputs, then the scratch
-    ops::OpArgs<P> a = params;
+  static void work(E& e, int t, Pool::Claims& claims) {
+    const JobDesc<T>& d = e.job;
+    ThreadBuffer<P>& buf = e.buffers[t];
+    // this thread's packed arrays: inputs, outputs, then the scratch; the parameters broadcast
+    ops::OpArgs<P> a{};
     P* v = buf.values();
     for (int i = 0; i < op.n_args; ++i) {
-      a.in[i] = in[i].p ? v : nullptr;
-      if (in[i].p) v += in[i].w;
+      a.in[i] = d.in[i].p ? v : nullptr;
+      if (d.in[i].p) v += d.in[i].w;
+      a.real[i] = P(d.real[i]);
+      a.choice[i] = d.choice[i];
     }
     for (int o = 0; o < op.n_out; ++o) {
-      a.out[o] = out[o].p ? v : nullptr;
-      if (out[o].p) v += out[o].w;
+      a.out[o] = d.out[o].p ? v : nullptr;
+      if (d.out[o].p) v += d.out[o].w;
     }
-    a.scratch = v;
+    a.scratch = v, a.ee = d.ee, a.n_ee = d.n_ee;
     // the default parameters' kernel (operations with a convention only)
     bool defaults = ops::takes_convention(Op::spec);
     for (int k = 0; k < op.n_args; ++k) {
-      if (op.args[k].kind == ops::kOptionalArray && in[k].p) defaults = false;
-      if (op.args[k].kind == ops::kConvention && params.choice[k] != kPinocchioConvention) defaults = false;
+      if (op.args[k].kind == ops::kOptionalArray && d.in[k].p) defaults = false;
+      if (op.args[k].kind == ops::kConvention && d.choice[k] != kPinocchioConvention) defaults = false;
     }
+    const long B = d.B;
     long p0, p1;
-    while (claim(t, p0, p1))
-      for (long p = p0; p < p1; ++p) {
+    while (claims.next(p0, p1))
+      for (long p = d.first + p0; p < d.first + p1; ++p) {
         const long s0 = p * W;
         const int valid = static_cast<int>(std::min<long>(W, B - s0));
         // gather: lane l holds sample s0 + l (the last valid one for padding)
         for (int i = 0; i < op.n_args; ++i) {
-          if (!in[i].p) continue;
+          const In<T>& in = d.in[i];
+          if (!in.p) continue;
           P* dst = const_cast<P*>(a.in[i]);
-          const long w = in[i].w;
           for (int l = 0; l < W; ++l) {
-            const T* src = in[i].p + (s0 + std::min(l, valid - 1)) * in[i].stride;
-            for (long k = 0; k < w; ++k) dst[k].v[l] = src[k];
+            const T* src = in.p + (s0 + std::min(l, valid - 1)) * in.stride;
+            for (long k = 0; k < in.w; ++k) dst[k].v[l] = src[k];
           }
         }
         bool ok;
         if constexpr (Op::spec.kernel == ops::kCalled)
-          ok = run_pack_called<Op, false>(e->mv, buf.ws, a);
+          ok = run_pack_called<Op, false>(e.mv, buf.ws, a);
         else if constexpr (ops::takes_convention(Op::spec))
-          ok = defaults ? run_pack<Op, true>(e->mv, buf.ws, a) : run_pack<Op, false>(e->mv, buf.ws, a);
+          ok = defaults ? run_pack<Op, true>(e.mv, buf.ws, a) : run_pack<Op, false>(e.mv, buf.ws, a);
         else
-          ok = run_pack<Op, false>(e->mv, buf.ws, a);
-        if (!ok) lower(failed, s0);
+          ok = run_pack<Op, false>(e.mv, buf.ws, a);
+        if (!ok) lower(e.faults.failed, s0);
         for (int o = 0; o < op.n_out; ++o) {
-          if (!out[o].p) continue;
-          const long w = out[o].w;
+          const Out<T>& out = d.out[o];
+          if (!out.p) continue;
           // results that overflowed despite the inputs' bounds
           if (op.outputs == ops::kFiniteOutputs) {
-            const P bad = nonfinite_lanes(a.out[o], w);
+            const P bad = nonfinite_lanes(a.out[o], out.w);
             for (int l = 0; l < valid; ++l)
               if (bad.v[l] != bad.v[l]) {
-                lower(nonfinite[o], s0 + l);
+                lower(e.faults.nonfinite[o], s0 + l);
                 break;
               }
           }
           // scatter the valid lanes
           for (int l = 0; l < valid; ++l) {
-            T* dst = out[o].p + (s0 + l) * w;
-            for (long k = 0; k < w; ++k) dst[k] = a.out[o][k].v[l];
+            T* dst = out.p + (s0 + l) * out.w;
+            for (long k = 0; k < out.w; ++k) dst[k] = a.out[o][k].v[l];
           }
         }
       }
@@ -296,15 +308,14 @@ template <typename T, typename Op> struct Job {
 // Op on c.B samples of engine e: pack the call, share the packs among the
 // threads, then name the first failed sample or the first overflowed output
 template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCall& c) {
-  using P = typename EngineT<T>::P;
   const ops::OpSpec& op = Op::spec;
   const Model& m = e.model;
   std::lock_guard<std::mutex> lk(e.call);
-  Job<T, Op> job;
-  job.e = &e;
+  // the call's description, written over the engine's where it changed
+  JobDesc<T> job;
+  std::memset(static_cast<void*>(&job), 0, sizeof job);  // padding too: publish compares bytes
   job.B = c.B;
   job.packs = (c.B + EngineT<T>::W - 1) / EngineT<T>::W;
-  job.active = static_cast<int>(std::min<long>(e.threads, job.packs));
   long values = ops::scratch_values(op, m);
   for (int k = 0; k < op.n_args; ++k) {
     const long w = ops::arg_values(op.args[k], m, c.n_ee);
@@ -314,25 +325,26 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
       job.in[k] = {static_cast<const T*>(c.in[k]), w, c.batched[k] ? w : 0};
       values += w;
     }
-    job.params.real[k] = P(static_cast<T>(c.real[k]));
-    job.params.choice[k] = c.choice[k];
+    job.real[k] = static_cast<T>(c.real[k]);
+    job.choice[k] = c.choice[k];
   }
-  job.params.ee = c.ee;
-  job.params.n_ee = c.n_ee;
+  job.ee = c.ee;
+  job.n_ee = c.n_ee;
   for (int o = 0; o < op.n_out; ++o) {
     job.out[o] = {static_cast<T*>(c.out[o]), ops::out_values(op.out[o], m, c.n_ee)};
     values += c.out[o] ? job.out[o].w : 0;
   }
-  for (std::atomic<long>& s : job.nonfinite) s.store(-1, std::memory_order_relaxed);
+  e.faults.reset();
   const WorkspaceLayout layout = ops::workspace_layout(op, m);
-  job.ranges = e.ranges.get();
-  for (int t = 0; t < job.active; ++t) {
-    e.buffers[t].reserve(m.nb(), m.nv, values, layout);
-    job.share(t);
+  const int active = static_cast<int>(std::min<long>(e.threads, job.packs));
+  for (int t = 0; t < active; ++t) e.buffers[t].reserve(m.nb(), m.nv, values, layout);
+  for (job.first = 0; job.first < job.packs; job.first += Pool::kMaxUnits) {
+    const long units = std::min(Pool::kMaxUnits, job.packs - job.first);
+    publish(e.job, job);
+    e.pool.run(static_cast<int>(std::min<long>(active, units)), units, &Job<T, Op>::call, &e);
   }
-  e.pool.run(job.active, &Job<T, Op>::call, &job);
 
-  const long f = job.failed.load();
+  const long f = e.faults.failed.load();
   if (f >= 0) {
     // the failed pack's lanes one at a time, in float64 on the serial kernel: the first that fails is
     // the sample to name (f when none does: a float32 failure float64 does not see)
@@ -368,7 +380,7 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
   }
   // the first output that overflowed, at its first such sample
   for (int o = 0; o < op.n_out; ++o) {
-    const long s = job.nonfinite[o].load();
+    const long s = e.faults.nonfinite[o].load();
     if (s < 0) continue;
     std::ostringstream os;
     os << op.name << ": output " << o << " is not finite at sample " << s
