@@ -231,7 +231,7 @@ bool load_generated(Robot& r, const char* flags) {
   }
   auto& id = r.args[0];  // (q, qd, qdd, gravity, f_ext) -> tau
   id.in[1] = r.qd.data(), id.in[2] = r.qdd.data(), id.real[3] = kGravity, id.out[0] = r.out.data();
-  r.args[1].out[0] = r.out.data();  // crba (q) -> M
+  r.args[1].out[0] = r.out.data();  // crba (q) -> M, the whole matrix (the registered operation's output)
   r.args[2].choice[1] = 0, r.args[2].out[0] = r.out.data();  // minv (q, output_dense = false) -> upper M⁻¹
   auto& aba = r.args[3];  // (q, qd, tau, f_ext, gravity) -> qdd
   aba.in[1] = r.qd.data(), aba.in[2] = r.tau.data(), aba.real[4] = kGravity, aba.out[0] = r.out.data();
@@ -255,11 +255,21 @@ std::vector<Operation> operations() {
                  [](Robot& r) { pinocchio::rnea(r.pmodel, *r.pdata, pin(r.q), pin(r.qd), pin(r.qdd)); },
                  [](Robot& r) { return max_abs_diff(r.out.data(), r.pdata->tau.data(), r.nv()); }});
 
-  // rbdkit writes the full symmetric M, Pinocchio the upper triangle only
-  ops.push_back({"crba", "mass matrix M(q) (rbdkit: full matrix; Pinocchio: upper triangle)",
-                 [](Robot& r) { rbd::crba(r.mv, *r.w, r.q.data(), r.out.data()); },
+  // both write the upper triangle only (rbdkit: crba<kMassUpper> zeroes the strict lower one)
+  ops.push_back({"crba", "mass matrix M(q) (both: upper triangle)",
+                 [](Robot& r) { rbd::crba<rbd::kMassUpper>(r.mv, *r.w, r.q.data(), r.out.data()); },
                  [](Robot& r) { pinocchio::crba(r.pmodel, *r.pdata, pin(r.q)); },
                  [](Robot& r) { return max_abs_diff_upper(r, r.pdata->M); }});
+
+  // both the whole symmetric M (Pinocchio: its upper triangle, then mirrored)
+  ops.push_back({"crba_dense", "mass matrix M(q) (both: the whole matrix)",
+                 [](Robot& r) { rbd::crba(r.mv, *r.w, r.q.data(), r.out.data()); },
+                 [](Robot& r) {
+                   pinocchio::crba(r.pmodel, *r.pdata, pin(r.q));
+                   r.pdata->M.triangularView<Eigen::StrictlyLower>() =
+                       r.pdata->M.transpose().triangularView<Eigen::StrictlyLower>();
+                 },
+                 [](Robot& r) { return max_abs_diff_rowmajor(r.out, r.pdata->M); }});
 
   // both write the upper triangle only (rbdkit: dense=false zeroes the strict lower one)
   ops.push_back({"minv", "inverse mass matrix M(q)^-1 (both: upper triangle)",

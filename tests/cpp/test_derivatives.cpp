@@ -152,7 +152,8 @@ TEST_P(Derivatives, TreeSparseProductIsTheDenseProduct) {
 }
 
 // M by the body-frame CRBA (models without mimic joints) against the world-frame pass, on every
-// joint type; and every entry written (no stale value survives in M)
+// joint type; and every entry written (no stale value survives in M); the upper triangle and the lower
+// tree pattern alone against M
 TEST_P(Derivatives, BodyFrameCrbaEqualsWorldFrameCrba) {
   const Model m = Model::from_urdf_file(GetParam().path, GetParam().floating);
   WorkspaceBuffer buf(m);
@@ -171,6 +172,35 @@ TEST_P(Derivatives, BodyFrameCrbaEqualsWorldFrameCrba) {
     EXPECT_LT(max_rel_err(M, Mw), 1e-13) << "trial " << trial;
     for (int r = 0; r < nv; ++r)
       for (int c = 0; c < nv; ++c) EXPECT_EQ(M[r * nv + c], M[c * nv + r]) << r << ", " << c;
+    // the upper triangle alone (kMassUpper): M's upper entries bit for bit, exact zeros below
+    std::vector<double> Mu(nv * nv, std::nan(""));
+    crba<kMassUpper>(mv, w, q.data(), Mu.data());
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c)
+        if (c >= r) EXPECT_EQ(Mu[r * nv + c], M[r * nv + c]) << r << ", " << c;
+        else EXPECT_EQ(Mu[r * nv + c], 0.0) << r << ", " << c;
+    // the lower tree pattern (mass_factor's input): M's entries of each DoF against itself and its
+    // ancestor DoFs, bit for bit; without mimic joints every other entry left as it was
+    std::vector<double> Ml(nv * nv, std::nan(""));
+    crba<kMassLowerPattern>(mv, w, q.data(), Ml.data());
+    std::vector<int> lambda(nv), run(nv);
+    std::vector<char> pattern(nv * nv, 0);
+    if (!m.has_mimic()) {
+      dof_tree(mv, lambda.data(), run.data());
+      for (int r = 0; r < nv; ++r)
+        for (int c = r; c >= 0; c = lambda[c]) pattern[r * nv + c] = 1;
+    }
+    int written = 0;
+    for (int r = 0; r < nv; ++r)
+      for (int c = 0; c < nv; ++c) {
+        if (m.has_mimic() || pattern[r * nv + c]) {
+          EXPECT_EQ(Ml[r * nv + c], M[r * nv + c]) << r << ", " << c;
+          ++written;
+        } else {
+          EXPECT_TRUE(std::isnan(Ml[r * nv + c])) << r << ", " << c;
+        }
+      }
+    EXPECT_GE(written, nv);
   }
 }
 

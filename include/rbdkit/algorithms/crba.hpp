@@ -131,48 +131,57 @@ template <typename S> RBD_HD void crba_act_columns(const Transform<S>& X, S* F, 
   for (int c = 0; c < n; ++c) crba_act_lanes(X.R.m, X.p.x, X.p.y, X.p.z, z_turn, F + 6 * c);
 }
 
+// which of M's entries crba writes: both triangles (M whole: the entries of DoF pairs neither of
+// which is the other's ancestor zeroed), the upper triangle (the strict lower one zeroed: the upper
+// triangle is what Pinocchio's crba writes, and a Cholesky factorisation reads), or the lower
+// triangle's tree pattern alone (the (DoF, ancestor DoF) pairs and the joints' own blocks; nothing
+// zeroed: mass_factor reads and writes no other entry)
+enum MassEntries { kMassFull, kMassUpper, kMassLowerPattern };
+
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
-// the columns F (nv x 6 row-major, each in body i's frame), each mirrored into the lower triangle.
-// Over the pass every entry of M that can be nonzero is assigned, off the diagonal once (the columns
-// before v_i: by i's ancestors' rows); the others (neither in i's subtree nor its ancestors') stay
-// as the pass found them, zero.
+// the columns F (nv x 6 row-major, each in body i's frame) into the upper triangle, and mirrored into
+// the lower one (E: MassEntries, which of the two). Over the pass every entry of M that can be nonzero
+// is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows); the others
+// (neither in i's subtree nor its ancestors') stay as the pass found them.
 // fc, sign: joint_frame_column(b, sign)
-template <typename S>
+template <int E, typename S>
 RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign, const S* F, S* M) {
+  constexpr bool upper = E != kMassLowerPattern, lower = E != kMassUpper;
   const BodyDesc<S>& b = m.body[i];
   const int nv = m.nv, vi = b.v_idx, c_end = vi + b.nv_subtree;
+  auto put = [&](int r, int c, const S& x) {  // M_rc = M_cr = x (r <= c)
+    if (upper) M[r * nv + c] = x;
+    if (lower) M[c * nv + r] = x;
+  };
   if (fc >= 0) {  // S = sign·e_fc: Sᵀ F is one component
-    for (int c = vi; c < c_end; ++c) {
-      const S x = sign * F[6 * c + fc];
-      M[vi * nv + c] = x;
-      M[c * nv + vi] = x;
-    }
+    for (int c = vi; c < c_end; ++c) put(vi, c, sign * F[6 * c + fc]);
   } else if (b.type == kFree) {  // S = 1: the rows are the columns F themselves
     for (int c = vi; c < vi + 6; ++c)  // the joint's own block: its upper triangle, mirrored
-      for (int l = 0; l <= c - vi; ++l) M[(vi + l) * nv + c] = F[6 * c + l], M[c * nv + vi + l] = F[6 * c + l];
+      for (int l = 0; l <= c - vi; ++l) put(vi + l, c, F[6 * c + l]);
     for (int c = vi + 6; c < c_end; ++c)
-      for (int l = 0; l < 6; ++l) M[(vi + l) * nv + c] = F[6 * c + l], M[c * nv + vi + l] = F[6 * c + l];
+      for (int l = 0; l < 6; ++l) put(vi + l, c, F[6 * c + l]);
   } else {
     for (int c = vi; c < c_end; ++c) {
       S x[6];
       joint_project(b, load_force(F + 6 * c), x);
       // the joint's own block: its upper triangle only (l <= c - vi), mirrored
-      for (int l = 0; l < b.nv && vi + l <= c; ++l) M[(vi + l) * nv + c] = x[l], M[c * nv + vi + l] = x[l];
+      for (int l = 0; l < b.nv && vi + l <= c; ++l) put(vi + l, c, x[l]);
     }
   }
 }
 
-// backward pass, bodies last to first, on M zeroed first (one contiguous fill: on a branched tree
-// most of M is zero, and zeroing each row's columns past the subtree with their mirrored column
-// took 6 % of Atlas's instructions, strided):
+// backward pass, bodies last to first, on M zeroed first unless E (MassEntries) is the lower
+// pattern (one contiguous fill: on a branched tree most of M is zero, and zeroing each row's columns
+// past the subtree with their mirrored column took 6 % of Atlas's instructions, strided):
 //   F_c = Ic_i s_c for body i's DoFs c               (its columns join the subtree's; picks from Ic
 //                                                     for a frame-axis or free joint)
 //   M[v_i.., subtree] = S_iᵀ F                        (crba_store_rows)
 //   Ic_λ += X_λi* Ic_i X_λi⁻¹,  F_subtree <- X_λi* F  (both now in the parent's frame)
 // reads w.X_parent; writes w.Ic (composites, body frames), w.F (nv x 6: the columns), M
-template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
+template <int E, typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m, Workspace<S>& w, S* M) {
   S* F = w.F;
-  for (int k = 0; k < m.nv * m.nv; ++k) M[k] = S(0);
+  if (E != kMassLowerPattern)
+    for (int k = 0; k < m.nv * m.nv; ++k) M[k] = S(0);
   RBD_UNROLL
   for (int i = m.nb - 1; i >= 0; --i) {
     const BodyDesc<S>& b = m.body[i];
@@ -182,7 +191,7 @@ template <typename S> RBD_HD void crba_body_backward_pass(const ModelView<S>& m,
     if (fc >= 0) store(sign * w.Ic[i].column(fc), F + 6 * vi);  // S = sign·e_fc: a column of Ic
     else if (b.type == kFree) for (int k = 0; k < 6; ++k) store(w.Ic[i].column(k), F + 6 * (vi + k));
     else for (int k = 0; k < b.nv; ++k) store(w.Ic[i] * joint_subspace_col(b, k), F + 6 * (vi + k));
-    crba_store_rows(m, i, fc, sign, F, M);
+    crba_store_rows<E>(m, i, fc, sign, F, M);
     if (b.parent >= 0) {
       const Transform<S>& X = w.X_parent[i];
       w.Ic[b.parent] += transform_inertia(X, w.Ic[i]);
@@ -270,16 +279,24 @@ template <typename S> RBD_HD void crba_world(const ModelView<S>& m, Workspace<S>
   crba_backward_pass(m, w, M);
 }
 
-// M(q), nv x nv row-major, symmetric. In body coordinates (writes w.X_parent,
-// w.Ic, w.F), on the general path in world coordinates (crba_world). placed: w.X_parent already
-// holds q's joint placements (rnea leaves them), which the body-frame pass then reads as they are
-template <typename S>
+// M(q), nv x nv row-major, symmetric; E (MassEntries): M whole (the default), its upper triangle
+// (zeros below) or its lower tree pattern. In body coordinates (writes w.X_parent, w.Ic, w.F), on the
+// general path in world coordinates (crba_world: M whole, then the lower triangle zeroed for the
+// upper). placed: w.X_parent already holds q's joint placements (rnea leaves them), which the
+// body-frame pass then reads as they are
+template <int E = kMassFull, typename S>
 RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M, bool placed = false) {
-  if (m.has_mimic) return crba_world(m, w, q, M);
+  if (m.has_mimic) {
+    crba_world(m, w, q, M);
+    if (E == kMassUpper)
+      for (int r = 1; r < m.nv; ++r)
+        for (int c = 0; c < r; ++c) M[r * m.nv + c] = S(0);
+    return;
+  }
   if (!placed) place_joints(m, w.X_parent, q);
   RBD_UNROLL
   for (int i = 0; i < m.nb; ++i) w.Ic[i] = m.body[i].I;
-  crba_body_backward_pass(m, w, M);
+  crba_body_backward_pass<E>(m, w, M);
 }
 
 // ---- M's tree-sparse factorisation (Featherstone, RBDA §6.5), for a small tree
@@ -368,12 +385,13 @@ RBD_HD bool mass_factor(const ModelView<S>& m, const Workspace<S>& w, const int*
   return true;
 }
 
-// M(q) by crba into w.dense2 (placed: as crba's), the DoF tree into w.so_i (lambda, then run: 2 nv
-// ints), then mass_factor (1/D_k at dinv[k·stride]); false as mass_factor. Writes w.X_parent
-// (unless placed), w.Ic (composites) and w.F as crba does
+// M(q)'s lower tree pattern by crba into w.dense2 (placed: as crba's; its other entries are left as
+// they were), the DoF tree into w.so_i (lambda, then run: 2 nv ints), then mass_factor (1/D_k at
+// dinv[k·stride]); false as mass_factor. Writes w.X_parent (unless placed), w.Ic (composites) and w.F
+// as crba does
 template <typename S>
 RBD_HD bool crba_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool placed, S* dinv, int stride) {
-  crba(m, w, q, w.dense2, placed);
+  crba<kMassLowerPattern>(m, w, q, w.dense2, placed);
   dof_tree(m, w.so_i, w.so_i + m.nv);
   return mass_factor(m, w, w.so_i, w.so_i + m.nv, w.dense2, dinv, stride);
 }
