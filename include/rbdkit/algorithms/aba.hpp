@@ -225,8 +225,8 @@ RBD_HD bool aba_dense(const ModelView<S>& m, Workspace<S>& w, const S* q, const 
 // CRBA on them (placed); M = Lᵀ D L; qdd = M⁻¹ (tau - c) by mass_factor_solve. On the iiwa, HyQ and
 // fixed Atlas it took 0.76-0.83 of the three passes' time, on floating HyQ 0.9 (a compiled instance,
 // docs/performance.md's tenth round). false where mass_factor refuses a pivot (qdd untouched): aba then
-// runs the passes, whose verdict stands. M and L in w.dense2, tau - c and 1/D in w.dense, the DoF tree
-// in w.so_i
+// runs the passes, whose verdict stands. M's lower tree pattern, then L, in w.dense2, tau - c and 1/D
+// in w.dense, the DoF tree in w.so_i
 template <typename S>
 RBD_HD bool aba_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
                          const S* fext, S gravity, S* qdd) {

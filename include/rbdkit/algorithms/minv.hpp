@@ -456,7 +456,8 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
 
 // Minv = M⁻¹ by crba and its factorisation (mass_factor), for a model without mimic joints (bodies
 // depth-first: minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when
-// dense. M and its factor in w.dense2, the DoF tree in w.so_i (2 nv ints); writes w.X_parent (placed:
+// dense. M's lower tree pattern (crba_factored), then its factor, in w.dense2 (its other entries
+// stale), the DoF tree in w.so_i (2 nv ints); writes w.X_parent (placed:
 // as crba's), w.Ic (composites) and w.F as crba does, not minv_backward_pass's placements. false where
 // mass_factor refuses a pivot (stricter than the passes' check): minv then runs the passes, whose
 // verdict stands
