@@ -82,6 +82,15 @@ const std::string& Engine::dtype() const { return impl_->dtype; }
 int Engine::simd_width() const { return impl_->W; }
 const Model& Engine::model() const { return impl_->model; }
 unsigned long Engine::workspace_bytes() const { return impl_->workspace_bytes(); }
+void Engine::set_max_job_packs(long packs) {
+  if (packs < 1 || packs > Pool::kMaxUnits) {
+    std::ostringstream os;
+    os << "set_max_job_packs: packs: expected 1.." << Pool::kMaxUnits << ", got " << packs;
+    throw std::invalid_argument(os.str());
+  }
+  std::lock_guard<std::mutex> lk(impl_->call);
+  impl_->max_job_packs = packs;
+}
 
 // ---- the typed entry points: registered operations (ops/registry.hpp)
 namespace {

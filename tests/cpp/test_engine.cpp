@@ -11,7 +11,8 @@
 //     amplification of fused roundings);
 //     float32 within 1e-4 of float64 (relative to max(1, max |value|); 2e-3
 //     for M⁻¹, ∇FD and the step gradients, limited by cond(M)·ε_float32);
-//   * bad arguments (threads, dtype, array type, B, integrator type, dt);
+//     the same when a batch runs as several pool jobs (set_max_job_packs);
+//   * bad arguments (threads, dtype, array type, B, integrator type, dt, job size);
 //   * an output that overflows is named (output, first sample) at any thread
 //     count; the pool's hand-off under churn (made / destroyed, asleep, two
 //     callers) gives the one-thread results; the pool on its own runs every
@@ -334,17 +335,22 @@ TEST_P(EngineModels, DeterministicAndEqualToSingleSample) {
   const long Bmax = 65;
   const Samples s = make_samples(m, Bmax, 7);
   Engine e1(m, 1, "float64"), e2(m, 2, "float64"), e3(m, 3, "float64");
+  // a batch of more packs than one pool job takes runs as several jobs, one after another: here
+  // jobs of one pack and of two (in use, past 2^24 - 1 packs)
+  Engine e2_jobs(m, 2, "float64"), e3_jobs(m, 3, "float64");
+  e2_jobs.set_max_job_packs(1), e3_jobs.set_max_job_packs(2);
   for (int op = 0; op < kOps; ++op) {
     SCOPED_TRACE("op " + std::to_string(op));
     const long w = out_width(m, op);
     const std::vector<double> full = run_engine<double>(e1, op, Bmax, s);
-    // bit-identical whatever the thread count and batch size
-    for (Engine* e : {&e1, &e2, &e3})
+    // bit-identical whatever the thread count, batch size and job size
+    for (Engine* e : {&e1, &e2, &e3, &e2_jobs, &e3_jobs})
       for (long B : {1L, 3L, 7L, 16L, 65L}) {
         const std::vector<double> part = run_engine<double>(*e, op, B, s);
         for (long k = 0; k < B * w; ++k)
           ASSERT_EQ(std::memcmp(&part[k], &full[k], sizeof(double)), 0)
-              << "threads " << e->threads() << " B " << B << " value " << k;
+              << "threads " << e->threads() << " B " << B << " value " << k
+              << (e == &e2_jobs || e == &e3_jobs ? " (several jobs)" : "");
       }
     // equal to the single-sample functions: bit for bit where this file's scalar code fuses no
     // multiply-add (x86-64 without FMA, CI's build: the engine's lanes do the same IEEE operations,
@@ -413,6 +419,9 @@ TEST(Engine, BadArguments) {
   EXPECT_NE(message([&] { e.integrator<float>(1, qf.data(), v.data(), v.data(), 0.0f, -9.81f, 0, x.data()); })
                 .find("dt"),
             std::string::npos);
+  EXPECT_NE(message([&] { e.set_max_job_packs(0); }).find("set_max_job_packs: packs: expected 1..16777215, got 0"),
+            std::string::npos);
+  EXPECT_NE(message([&] { e.set_max_job_packs(1L << 24); }).find("packs"), std::string::npos);
   EXPECT_GE(Engine::default_threads(), 1);
   Engine d(m);
   EXPECT_EQ(d.threads(), Engine::default_threads());
@@ -522,6 +531,8 @@ TEST(Engine, OutputThatOverflowsIsNamed) {
   for (const char* dtype : {"float64", "float32"})
     for (int threads : {1, 2, 3}) {
       Engine e(m, threads, dtype);
+      // with 3 threads, jobs of one pack: the samples are named across jobs
+      if (threads == 3) e.set_max_job_packs(1);
       auto run = [&](auto zero) {
         using T = decltype(zero);
         std::vector<T> q(s.q.begin(), s.q.end()), qd(s.qd.begin(), s.qd.end()), a(s.a.begin(), s.a.end()),

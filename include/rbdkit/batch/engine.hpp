@@ -94,6 +94,12 @@ class Engine {
   // throw as the methods above do.
   void run_op(int op, const ops::OpCall& call);
 
+  // the most packs (simd_width() samples each) one job of the thread pool takes: a batch of more runs
+  // as several jobs, one after another. packs: 1 .. 2^24 - 1, the default (a batch of over 134
+  // million float64 samples on AVX-512); else std::invalid_argument. For tests, which set it small
+  // to run that path on a small batch; the results do not depend on it
+  void set_max_job_packs(long packs);
+
   struct Impl;
 
  private:

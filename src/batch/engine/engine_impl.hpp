@@ -62,6 +62,7 @@ struct Engine::Impl {
   int threads;
   std::string dtype;
   int W;
+  long max_job_packs = engine_detail::Pool::kMaxUnits;  // the packs of one pool job (Engine::set_max_job_packs)
   std::mutex call;
   Impl(const Model& m, int t, const std::string& d, int w) : model(m), threads(t), dtype(d), W(w) {}
   virtual ~Impl() = default;
@@ -127,7 +128,7 @@ template <typename T> struct Out {
 // same arrays hand the worker nothing but the pool's job word.
 template <typename T> struct alignas(64) JobDesc {
   long B, packs;
-  long first;  // the pool's unit u is pack first + u (a batch of more than Pool::kMaxUnits packs runs as several jobs)
+  long first;  // the pool's unit u is pack first + u (a batch of more than max_job_packs packs runs as several jobs)
   In<T> in[ops::kMaxArgs];  // the arrays in argument order (a parameter's slot is empty)
   Out<T> out[ops::kMaxOutputs];
   T real[ops::kMaxArgs];  // the parameters, broadcast to every lane by each thread
@@ -338,8 +339,8 @@ template <typename T, typename Op> void op_route(EngineT<T>& e, const ops::OpCal
   const WorkspaceLayout layout = ops::workspace_layout(op, m);
   const int active = static_cast<int>(std::min<long>(e.threads, job.packs));
   for (int t = 0; t < active; ++t) e.buffers[t].reserve(m.nb(), m.nv, values, layout);
-  for (job.first = 0; job.first < job.packs; job.first += Pool::kMaxUnits) {
-    const long units = std::min(Pool::kMaxUnits, job.packs - job.first);
+  for (job.first = 0; job.first < job.packs; job.first += e.max_job_packs) {
+    const long units = std::min(e.max_job_packs, job.packs - job.first);
     publish(e.job, job);
     e.pool.run(static_cast<int>(std::min<long>(active, units)), units, &Job<T, Op>::call, &e);
   }
