@@ -93,6 +93,32 @@ double parse_number(const tinyxml2::XMLElement* e, const char* attr, const std::
   return parse_numbers(t, 1, what, attr)[0];
 }
 
+// R itself, or the signed permutation it is to within 1e-10 in every entry. An rpy of quarter turns
+// leaves cos(π/2)'s rounding where the turn has exact zeros: 6e-17 written to double precision
+// (1.5707963267948966), 5e-12 to 11 digits (HyQ's 1.57079632679); the exact zeros are what the
+// algorithms' frame-axis forms test for (crba_act_columns, frame_turn_form). The snap moves the
+// placement by at most 1e-10 rad. A rotation further from one (Atlas's π/2 rounded to float32, 4e-8
+// off) is kept as it is
+inline Mat3<double> snap_quarter_turns(const Mat3<double>& R) {
+  Mat3<double> P = Mat3<double>::zero();
+  for (int r = 0; r < 3; ++r) {
+    int ones = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double x = R(r, c);
+      if (std::abs(std::abs(x) - 1.0) <= 1e-10) {
+        P(r, c) = x > 0 ? 1.0 : -1.0;
+        ++ones;
+      } else if (std::abs(x) > 1e-10) {
+        return R;
+      }
+    }
+    if (ones != 1) return R;
+  }
+  for (int c = 0; c < 3; ++c)  // one ±1 in each column too: a signed permutation
+    if (std::abs(P(0, c)) + std::abs(P(1, c)) + std::abs(P(2, c)) != 1.0) return R;
+  return P;
+}
+
 // X_parent_child from <origin xyz rpy> (fixed-axis roll, pitch, yaw)
 Transform<double> parse_origin(const tinyxml2::XMLElement* parent, const std::string& what) {
   const tinyxml2::XMLElement* o = parent->FirstChildElement("origin");
@@ -107,7 +133,7 @@ Transform<double> parse_origin(const tinyxml2::XMLElement* parent, const std::st
     const Mat3<double> Rx = axis_angle(Vec3<double>{1, 0, 0}, r[0]);
     const Mat3<double> Ry = axis_angle(Vec3<double>{0, 1, 0}, r[1]);
     const Mat3<double> Rz = axis_angle(Vec3<double>{0, 0, 1}, r[2]);
-    X.R = Rz * Ry * Rx;
+    X.R = snap_quarter_turns(Rz * Ry * Rx);
   }
   return X;
 }

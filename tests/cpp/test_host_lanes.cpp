@@ -2,12 +2,13 @@
 // (which the double-only vector forms do not take; the instances themselves are checked against the
 // library in test_specialize.cpp). This file is compiled twice, headers only:
 //   - rbdkit_host_lanes_tests, for x86-64's baseline (SSE2), as the library is: spatial.hpp's
-//     transform_inertia_pairs and crba.hpp's crba_act_column_pairs (2-lane vectors);
+//     transform_inertia_pairs and crba.hpp's crba_act_column_pairs (2-lane vectors, in the frame-axis forms);
 //   - rbdkit_host_avx_tests, with -mavx2 (RBD_HOST_AVX: what a per-robot instance compiled with
 //     -march=native takes): transform_inertia_pairs again and crba_act_columns_avx (4-lane vectors).
 // The AVX forms skip on a processor without AVX2, except under CI=true, where they fail.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <string>
@@ -62,6 +63,33 @@ Transform<double> random_transform(std::mt19937& rng) {
   const double n = std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
   a = {a.x / n, a.y / n, a.z / n};
   return {axis_angle(a, 3.0 * U(rng)), {U(rng), U(rng), U(rng)}};
+}
+
+// a turn by t about frame axis K
+Mat3<double> frame_turn(int K, double t) {
+  Vec3<double> a = {0, 0, 0};
+  a[K] = 1;
+  return axis_angle(a, t);
+}
+
+// a rotation of quarter turns: a signed permutation of determinant 1, uniformly of the 24
+Mat3<double> quarter_turns(std::mt19937& rng) {
+  int perm[3] = {0, 1, 2};
+  std::shuffle(perm, perm + 3, rng);
+  Mat3<double> P = Mat3<double>::zero();
+  for (int r = 0; r < 3; ++r) P(r, perm[r]) = rng() % 2 ? 1.0 : -1.0;
+  const double det = P(0, 0) * (P(1, 1) * P(2, 2) - P(1, 2) * P(2, 1)) -
+                     P(0, 1) * (P(1, 0) * P(2, 2) - P(1, 2) * P(2, 0)) +
+                     P(0, 2) * (P(1, 0) * P(2, 1) - P(1, 1) * P(2, 0));
+  if (det < 0) P(0, perm[0]) = -P(0, perm[0]);
+  return P;
+}
+
+// the row of column K's nonzero
+int column_row(const Mat3<double>& R, int K) {
+  for (int r = 0; r < 3; ++r)
+    if (R(r, K) != 0) return r;
+  return -1;
 }
 
 // a body's inertia: mass 0.1-10 kg, centre of mass within half a metre, principal moments turned
@@ -120,12 +148,13 @@ TEST(HOST_LANES, ColumnTransformsAreForceTransforms) {
   for (int n = 0; n <= 9; ++n)
     for (int trial = 0; trial < 50; ++trial) {
       Transform<double> X = random_transform(rng);
-      if (trial % 4 == 1) {  // a turn about z alone (turns_about_z: the 2 x 2 form), exactly
-        const double a = 3.0 * U(rng), c = std::cos(a), s = std::sin(a);
-        X.R = Mat3<double>::identity();
-        X.R(0, 0) = c, X.R(0, 1) = -s, X.R(1, 0) = s, X.R(1, 1) = c;
-        ASSERT_TRUE(turns_about_z(X.R));
+      int form = -1;
+      if (trial % 2 == 1) {  // a frame-axis form, exactly: P R_K(θ) (a joint under a quarter-turn placement)
+        const int K = rng() % 3;
+        X.R = quarter_turns(rng) * frame_turn(K, 3.0 * U(rng));
+        form = 3 * K + column_row(X.R, K);
       }
+      if (form >= 0) ASSERT_EQ(frame_turn_form(X.R), form) << "trial " << trial;
       // n columns with a guard entry on either side, which the transform must leave alone
       std::vector<double> buf(6 * n + 2);
       for (auto& x : buf) x = 10 * U(rng);
@@ -140,6 +169,35 @@ TEST(HOST_LANES, ColumnTransformsAreForceTransforms) {
         const long double ref[6] = {F.lin.x, F.lin.y, F.lin.z, F.ang.x, F.ang.y, F.ang.z};
         for (int k = 0; k < 6; ++k)
           EXPECT_NEAR(buf[1 + 6 * c + k], double(ref[k]), 1e-13) << "n " << n << ", column " << c << ", entry " << k;
+#if !defined(RBD_HOST_AVX) && !defined(__FMA__)
+        // the frame-axis forms are the general form's values, but for the sign of a zero: the
+        // engine's packs (the general form) and the single-sample code agree bit for bit
+        double general[6];
+        for (int k = 0; k < 6; ++k) general[k] = f[k];
+        crba_act_lanes<-1>(X.R.m, X.p.x, X.p.y, X.p.z, general);
+        for (int k = 0; k < 6; ++k) EXPECT_EQ(buf[1 + 6 * c + k], general[k]) << "form " << form << ", entry " << k;
+#endif
       }
     }
+}
+
+// the forms with_frame_turn_form chooses: the nine frame-axis forms (a quarter-turn placement of a
+// joint about each frame axis), each taken only where R has its exact zeros
+TEST(HOST_LANES, FrameTurnFormsAreReadOffExactZeros) {
+  std::mt19937 rng(8);
+  for (int K = 0; K < 3; ++K)
+    for (int trial = 0; trial < 48; ++trial) {
+      const Mat3<double> P = quarter_turns(rng);
+      Mat3<double> R = P * frame_turn(K, 0.7);
+      const int rho = column_row(R, K);
+      EXPECT_EQ(frame_turn_form(R), 3 * K + rho);
+      int got = -2;
+      with_frame_turn_form(R, [&](auto f) { got = decltype(f)::value; });
+      EXPECT_EQ(got, 3 * K + rho);
+      R(rho, K == 0 ? 1 : 0) = 1e-300;  // no longer an exact zero: the general form
+      EXPECT_EQ(frame_turn_form(R), -1);
+    }
+  EXPECT_EQ(frame_turn_form(Mat3<double>::identity()), 0);  // no turn: every form, the first taken
+  EXPECT_EQ(frame_turn_form(axis_angle(Vec3<double>{0.6, 0.8, 0}, 0.3)), -1);
+  EXPECT_EQ(frame_turn_form(axis_angle(Vec3<float>{0, 0, 1}, 0.3f)), 8);
 }

@@ -17,6 +17,9 @@
 
 using rbd::Dynamics;
 using rbd::Model;
+using rbd::Mat3;
+using rbd::Vec3;
+using rbd::axis_angle;
 
 namespace {
 const std::string kRobots = RBDKIT_ROBOTS_DIR;
@@ -90,6 +93,33 @@ TEST(Urdf, FixedJointsMergeInertiaAndKeepFrames) {
   EXPECT_DOUBLE_EQ(m.upper[0], 1.0);
   EXPECT_DOUBLE_EQ(m.effort_limit[0], 5.0);
   EXPECT_DOUBLE_EQ(m.velocity_limit[0], 2.0);
+}
+
+// an rpy of quarter turns rounded (to double precision, or to 11 digits as HyQ's files) is read as the
+// exact quarter turns, within 1e-10 of the file's rotation; one further off (π/2 to float32's 7
+// digits, Atlas's) as written
+TEST(Urdf, QuarterTurnPlacementsAreExact) {
+  const auto placed = [](const std::string& rpy) {
+    const Model m = Model::from_urdf_string(robot(link("base") + link("a", 1.0, "0.1 0 0 0.2 0 0.3") +
+        joint("j", "continuous", "base", "a", "<origin xyz=\"0.1 0 0\" rpy=\"" + rpy + "\"/><axis xyz=\"0 0 1\"/>")));
+    return m.bodies[0].X_tree.R;
+  };
+  const Mat3<double> exact = {{0, 0, 1, 1, 0, 0, 0, 1, 0}};  // Rz(π/2) Rx(π/2)
+  for (const char* rpy : {"1.5707963267948966 0 1.5707963267948966", "1.57079632679 0 1.57079632679",
+                          "1.570796326794897 -0.0 1.570796326794897"}) {
+    const Mat3<double> R = placed(rpy);
+    for (int k = 0; k < 9; ++k) EXPECT_EQ(R.m[k], exact.m[k]) << rpy << " entry " << k;
+  }
+  // not within 1e-10: the file's rotation, entries as axis_angle's
+  const Mat3<double> R = placed("1.5708 0 0");
+  const Mat3<double> ref = axis_angle(Vec3<double>{1, 0, 0}, 1.5708);
+  for (int k = 0; k < 9; ++k) EXPECT_EQ(R.m[k], ref.m[k]) << "entry " << k;
+  EXPECT_NE(R(1, 1), 0.0);
+  // a general rotation is as written
+  const Mat3<double> G = placed("0.3 -0.2 0.1");
+  const Mat3<double> Gref = axis_angle(Vec3<double>{0, 0, 1}, 0.1) * axis_angle(Vec3<double>{0, 1, 0}, -0.2) *
+                            axis_angle(Vec3<double>{1, 0, 0}, 0.3);
+  for (int k = 0; k < 9; ++k) EXPECT_EQ(G.m[k], Gref.m[k]) << "entry " << k;
 }
 
 TEST(Urdf, JointTypesAndSizes) {

@@ -56,31 +56,78 @@ inline void crba_act_columns_avx(const Transform<double>& X, double* F, int n) {
 }
 #endif
 
-// F <- X* F for one column x[0..6) (its components l0 l1 l2 a0 a1 a2; or, V a vector, a column per
-// lane) from X's R (row-major) and p as values of C (S, or S in every lane of V), with Transform::act's
-// operations in their order, or where X turns about its z axis alone (z_turn: turns_about_z) with R's
-// 2 x 2 block (crba_act_columns below)
-template <typename C, typename V>
-RBD_HD_INLINE void crba_act_lanes(const C* R, const C& px, const C& py, const C& pz, bool z_turn, V* x) {
-  V l0, l1, l2, a0, a1, a2;
-  if (z_turn) {
-    l0 = R[0] * x[0] + R[1] * x[1], l1 = R[3] * x[0] + R[4] * x[1], l2 = x[2];
-    a0 = R[0] * x[3] + R[1] * x[4], a1 = R[3] * x[3] + R[4] * x[4], a2 = x[5];
-  } else {
-    l0 = (R[0] * x[0] + R[1] * x[1]) + R[2] * x[2];
-    l1 = (R[3] * x[0] + R[4] * x[1]) + R[5] * x[2];
-    l2 = (R[6] * x[0] + R[7] * x[1]) + R[8] * x[2];
-    a0 = (R[0] * x[3] + R[1] * x[4]) + R[2] * x[5];
-    a1 = (R[3] * x[3] + R[4] * x[4]) + R[5] * x[5];
-    a2 = (R[6] * x[3] + R[7] * x[4]) + R[8] * x[5];
+// which frame-axis form a rotation has: 3 K + ρ where R = P R_K(θ), a turn about frame axis K followed
+// by a signed permutation P that takes axis K to axis ρ (a revolute joint about a frame axis under a
+// placement of quarter turns, or of none: P = 1, ρ = K), read off R's exact zeros: column K and row ρ
+// are zero but for R(ρ, K) = ±1, so that each other row has its two nonzeros in the two columns other
+// than K. -1: none (a general rotation)
+template <typename S> RBD_HD_INLINE int frame_turn_form(const Mat3<S>& R) {
+  for (int k = 0; k < 3; ++k) {
+    const int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
+    for (int rho = 0; rho < 3; ++rho) {
+      const int r1 = rho == 2 ? 0 : rho + 1, r2 = rho == 0 ? 2 : rho - 1;
+      if (R(rho, k1) == S(0) && R(rho, k2) == S(0) && R(r1, k) == S(0) && R(r2, k) == S(0)) return 3 * k + rho;
+    }
   }
-  x[0] = l0, x[1] = l1, x[2] = l2;
-  x[3] = a0 + (py * l2 - pz * l1), x[4] = a1 + (pz * l0 - px * l2), x[5] = a2 + (px * l1 - py * l0);
+  return -1;
 }
 
-// whether R turns about its z axis alone (its third row and column are e_z)
-template <typename S> RBD_HD_INLINE bool turns_about_z(const Mat3<S>& R) {
-  return R(0, 2) == S(0) && R(1, 2) == S(0) && R(2, 0) == S(0) && R(2, 1) == S(0) && R(2, 2) == S(1);
+// F <- X* F for one column x[0..6) (its components l0 l1 l2 a0 a1 a2; or, V a vector, a column per
+// lane) from X's R (row-major) and p as values of C (S, or S in every lane of V): with Transform::act's
+// operations in their order (Form -1), or in R's frame-axis form Form = 3 K + ρ (frame_turn_form), each
+// row but ρ two products and row ρ one, R(ρ, K) x_K: 26 operations a column where the general form
+// takes 42, with the same values for finite columns up to the sign of a zero (the general form's sums
+// (R_r0 x_0 + R_r1 x_1) + R_r2 x_2 add the same nonzero products in the same order, and exact zeros)
+template <int Form, typename C, typename V>
+RBD_HD_INLINE void crba_act_lanes(const C* R, const C& px, const C& py, const C& pz, V* x) {
+  V l[3], a[3];
+  if constexpr (Form < 0) {
+    for (int r = 0; r < 3; ++r) {
+      l[r] = (R[3 * r] * x[0] + R[3 * r + 1] * x[1]) + R[3 * r + 2] * x[2];
+      a[r] = (R[3 * r] * x[3] + R[3 * r + 1] * x[4]) + R[3 * r + 2] * x[5];
+    }
+  } else {
+    constexpr int K = Form / 3, rho = Form % 3;
+    constexpr int c0 = K == 0 ? 1 : 0, c1 = K == 2 ? 1 : 2;  // the columns other than K, in order
+    for (int r = 0; r < 3; ++r) {
+      if (r == rho) {
+        l[r] = R[3 * r + K] * x[K];
+        a[r] = R[3 * r + K] * x[3 + K];
+      } else {
+        l[r] = R[3 * r + c0] * x[c0] + R[3 * r + c1] * x[c1];
+        a[r] = R[3 * r + c0] * x[3 + c0] + R[3 * r + c1] * x[3 + c1];
+      }
+    }
+  }
+  x[0] = l[0], x[1] = l[1], x[2] = l[2];
+  x[3] = a[0] + (py * l[2] - pz * l[1]), x[4] = a[1] + (pz * l[0] - px * l[2]);
+  x[5] = a[2] + (px * l[1] - py * l[0]);
+}
+
+// f(std::integral_constant<int, Form>{}) with R's frame_turn_form (read from a real scalar's values;
+// a pack or a dual number takes the general form, Form -1). On a device only Form 8 (a turn about z
+// under no turn) has its own instance, which keeps the kernels' code small
+template <typename S, typename F> RBD_HD_INLINE void with_frame_turn_form(const Mat3<S>& R, F&& f) {
+  int form = -1;
+  if constexpr (std::is_floating_point<S>::value) form = frame_turn_form(R);
+  typedef std::integral_constant<int, -1> General;
+#if defined(__CUDA_ARCH__)
+  if (form == 8) return f(std::integral_constant<int, 8>{});
+  return f(General{});
+#else
+  switch (form) {
+    case 0: return f(std::integral_constant<int, 0>{});
+    case 1: return f(std::integral_constant<int, 1>{});
+    case 2: return f(std::integral_constant<int, 2>{});
+    case 3: return f(std::integral_constant<int, 3>{});
+    case 4: return f(std::integral_constant<int, 4>{});
+    case 5: return f(std::integral_constant<int, 5>{});
+    case 6: return f(std::integral_constant<int, 6>{});
+    case 7: return f(std::integral_constant<int, 7>{});
+    case 8: return f(std::integral_constant<int, 8>{});
+    default: return f(General{});
+  }
+#endif
 }
 
 #if defined(RBD_HOST_LANES) && !defined(RBD_HOST_AVX) && defined(__SSE2__)
@@ -93,42 +140,42 @@ template <typename S> RBD_HD_INLINE bool turns_about_z(const Mat3<S>& R) {
 // moves for one
 inline void crba_act_column_pairs(const Transform<double>& X, double* F, int n) {
   typedef double V __attribute__((vector_size(16)));
-  const bool z_turn = turns_about_z(X.R);
   const double* R = X.R.m;
-  int c = 0;
-  if (n >= 2) {
-    V r[9];  // R and p in both lanes, once for the subtree's columns
-    for (int k = 0; k < 9; ++k) r[k] = V{R[k], R[k]};
-    const V px = {X.p.x, X.p.x}, py = {X.p.y, X.p.y}, pz = {X.p.z, X.p.z};
-    for (; c + 2 <= n; c += 2) {
-      double* f = F + 6 * c;  // column c, then column c + 1
-      V x[6];
-      for (int k = 0; k < 6; ++k) x[k] = V{f[k], f[6 + k]};
-      crba_act_lanes(r, px, py, pz, z_turn, x);
-      for (int k = 0; k < 6; ++k) f[k] = x[k][0], f[6 + k] = x[k][1];
+  with_frame_turn_form(X.R, [&](auto form) {
+    constexpr int Form = decltype(form)::value;
+    int c = 0;
+    if (n >= 2) {
+      V r[9];  // R and p in both lanes, once for the subtree's columns
+      for (int k = 0; k < 9; ++k) r[k] = V{R[k], R[k]};
+      const V px = {X.p.x, X.p.x}, py = {X.p.y, X.p.y}, pz = {X.p.z, X.p.z};
+      for (; c + 2 <= n; c += 2) {
+        double* f = F + 6 * c;  // column c, then column c + 1
+        V x[6];
+        for (int k = 0; k < 6; ++k) x[k] = V{f[k], f[6 + k]};
+        crba_act_lanes<Form>(r, px, py, pz, x);
+        for (int k = 0; k < 6; ++k) f[k] = x[k][0], f[6 + k] = x[k][1];
+      }
     }
-  }
-  if (c < n) crba_act_lanes(R, X.p.x, X.p.y, X.p.z, z_turn, F + 6 * c);
+    if (c < n) crba_act_lanes<Form>(R, X.p.x, X.p.y, X.p.z, F + 6 * c);
+  });
 }
 #endif
 
-// F_c <- X* F_c for the n columns F (n x 6 row-major), crba_act_lanes column by column. Where X turns
-// about its z axis alone (R's third row and column are e_z: a joint about z whose placement is not
-// turned, or no turn at all; 40 of floating Atlas's 150 column transforms, 4 of fixed HyQ's 12), R's
-// products drop to its 2 x 2 block: 24 operations a column where the general transform takes 42, with
-// the same values for finite columns up to the sign of a zero (the dropped terms are products by exact
-// zeros and by one). The test reads a real scalar's values; a pack or a dual number takes the general
-// form. In double under AVX (crba_act_columns_avx) every column goes through 4-lane vectors instead,
-// and on an x86-64 without AVX two columns at a time (crba_act_column_pairs)
+// F_c <- X* F_c for the n columns F (n x 6 row-major), crba_act_lanes column by column, in R's
+// frame-axis form where it has one (with_frame_turn_form: a revolute joint about a frame axis under a
+// placement of quarter turns or of none; with the URDF reader's snap of near quarter turns every
+// column transform of the iiwa and HyQ): 26 operations a column where the general transform takes 42.
+// In double under AVX (crba_act_columns_avx) every column goes through 4-lane vectors instead, and on
+// an x86-64 without AVX two columns at a time (crba_act_column_pairs)
 template <typename S> RBD_HD void crba_act_columns(const Transform<S>& X, S* F, int n) {
 #if defined(RBD_HOST_AVX)
   if constexpr (std::is_same<S, double>::value) return crba_act_columns_avx(X, F, n);
 #elif defined(RBD_CRBA_COLUMN_PAIRS)
   if constexpr (std::is_same<S, double>::value) return crba_act_column_pairs(X, F, n);
 #endif
-  bool z_turn = false;
-  if constexpr (std::is_floating_point<S>::value) z_turn = turns_about_z(X.R);
-  for (int c = 0; c < n; ++c) crba_act_lanes(X.R.m, X.p.x, X.p.y, X.p.z, z_turn, F + 6 * c);
+  with_frame_turn_form(X.R, [&](auto form) {
+    for (int c = 0; c < n; ++c) crba_act_lanes<decltype(form)::value>(X.R.m, X.p.x, X.p.y, X.p.z, F + 6 * c);
+  });
 }
 
 // which of M's entries crba writes: both triangles (M whole: the entries of DoF pairs neither of
