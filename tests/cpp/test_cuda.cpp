@@ -237,87 +237,92 @@ TEST(Cuda, WorkMemoriesAgree) {
 // the serial loop, as the sample-per-thread kernels are: every test model, both dtypes, the work in shared
 // and in global memory, every output or some, f_ext, every integrator scheme in both conventions
 // (MuJoCo's, asked for, on one thread of the team), the Hessian in both of its forms;
-// mimic models keep the sample kernel; device arrays' values checked by the team
-TEST(Cuda, TeamKernelsEqualCpu) {
-  for (const ModelCase& mc : rbd_test::all_cases()) {
-    const Model m = Model::from_urdf_file(mc.path, mc.floating);
-    SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
-    rbd::Handle serial(m);
-    const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
-    for (const char* name : {"inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient",
-                             "forward_dynamics_gradient", "integrator", "plant_step", "integrator_gradient",
-                             "integrator_f_ext_gradient", "plant_step_gradient", "plant_step_hessian"}) {
-      SCOPED_TRACE(name);
-      const int id = ops::find_op(name);
-      const ops::OpSpec& op = *ops::op_table()[id].spec;
-      const bool hessian = std::string(name) == "plant_step_hessian";
-      const bool step = std::string(op.family) == "integrators" || hessian, minv = std::string(name) == "minv";
-      const bool q_only = minv || std::string(name) == "crba";  // (M and M⁻¹ take q alone)
-      const bool plant = std::string(op.args[0].name) == "x";   // (x = [q; qd], then u)
-      const int o = plant ? 0 : 1;  // a step's arguments after x, or after q and qd
-      const bool step_value = step && op.n_out == 1;  // (the step's value: FD's rule, 8 per SM)
-      // auto: the team on a small batch (at most 8 per SM, 32 for a step's derivatives: 32 or 128
-      // samples on the interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps
-      // the sample kernel whatever is asked
-      EXPECT_EQ(p64->cuda()->kernel(), "auto");
-      EXPECT_EQ(p64->cuda()->kernel_for(id, 5), m.has_mimic() ? "sample" : "team");
-      const bool wide = m.nv >= 16 && std::string(name) != "inverse_dynamics";  // (ID: O(nb), never wide)
-      EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() || !wide ? "sample" : "team");
-      if (!on_device()) {  // the per-SM bound, at the interpret device's 4 SMs
-        const long bound = 4 * (step && !step_value ? 32 : 8);
-        EXPECT_EQ(p64->cuda()->kernel_for(id, bound), m.has_mimic() ? "sample" : "team");
-        EXPECT_EQ(p64->cuda()->kernel_for(id, bound + 1), m.has_mimic() || !wide ? "sample" : "team");
-      }
-      if (step) EXPECT_EQ(p64->cuda()->kernel_for(id, 5, 1), "sample");  // (MuJoCo's convention: no team form)
-      p64->cuda()->set_kernel("team");
-      EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() ? "sample" : "team");
-      p64->cuda()->set_kernel("sample");
-      EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
-      p64->cuda()->set_kernel("auto");
-      Inputs in = make_inputs(m, op, hessian ? 3 : 5, 11, true);
-      // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the
-      // halves alone; ∇FD: every output, the two matrices alone; the steps: every output, the last alone;
-      // M⁻¹ dense and upper; each step with every scheme (the 6 integrator types) and convention (0:
-      // Pinocchio's, 1: MuJoCo's)
-      const std::vector<unsigned> masks =
-          op.n_out == 1 ? std::vector<unsigned>{1u}
-          : step        ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
-          : op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110} : std::vector<unsigned>{0b1111, 0b0011};
-      for (int variant = 0; variant < (step ? 12 : minv ? 2 : 1); ++variant)
-      for (unsigned mask : masks) {
-        SCOPED_TRACE(mask);
-        SCOPED_TRACE(variant);
-        if (hessian) {  // the Hessian: integrator_type, output_convention, form (the reference one for H alone)
-          in.call.choice[3] = variant % 6, in.call.choice[5] = variant / 6, in.call.choice[6] = mask == 1u << 2;
-        } else if (step) {
-          in.call.choice[3 + o] = variant % 6, in.call.choice[6 + o] = variant / 6;
-        }
-        if (minv) in.call.choice[1] = 1 - variant;  // output_dense: True, then False
-        // MuJoCo's convention: the team asked for, which runs the step on one of its threads
-        const char* kernel = step && variant >= 6 ? "team" : "auto";
-        p64->cuda()->set_kernel(kernel), p32->cuda()->set_kernel(kernel);
-        const std::vector<double> ref = run<double>(serial, id, in, mask);
-        for (const char* where : {"shared", "global"}) {
-          p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);
-          try {
-            EXPECT_LE(max_rel_err(run<double>(*p64, id, in, mask), ref), on_device() ? 1e-8 : float64_bound(op)) << where;
-            EXPECT_LE(max_rel_err(run<float>(*p32, id, in, mask), ref), float32_bound(op)) << where;
-          } catch (const std::invalid_argument& x) {  // (floating Atlas: a slice larger than a block's)
-            EXPECT_STREQ(where, "shared");
-            EXPECT_NE(std::string(x.what()).find("exceeds a block's shared memory"), std::string::npos) << x.what();
-          }
-        }
-        p64->cuda()->set_work_memory("auto"), p32->cuda()->set_work_memory("auto");
-        p64->cuda()->set_kernel("auto"), p32->cuda()->set_kernel("auto");
-      }
-      if (on_device()) continue;
-      // a device array's bad value: the team's check names it, as the host's does
-      Inputs bad = in;
-      bad.arrays[q_only ? 0 : 1][(hessian ? 2 : 3) * (q_only ? m.nq : m.nv)] = NAN;
-      const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
-      EXPECT_NE(msg.find(q_only ? "q[3]" : hessian ? "u[2]" : plant ? "u[3]" : "qd[3]"), std::string::npos) << msg;
+// mimic models keep the sample kernel; device arrays' values checked by the team. A test per model
+// (ctest runs them side by side: under the sanitizers the sixteen took 122 s as one test)
+class CudaTeamModels : public ::testing::TestWithParam<ModelCase> {};
+TEST_P(CudaTeamModels, TeamKernelsEqualCpu) {
+  const ModelCase& mc = GetParam();
+  const Model m = Model::from_urdf_file(mc.path, mc.floating);
+  SCOPED_TRACE(mc.path + (mc.floating ? " floating" : " fixed"));
+  rbd::Handle serial(m);
+  const auto p64 = interpret_handle(m, "float64"), p32 = interpret_handle(m, "float32");
+  for (const char* name : {"inverse_dynamics", "crba", "minv", "forward_dynamics", "inverse_dynamics_gradient",
+                           "forward_dynamics_gradient", "integrator", "plant_step", "integrator_gradient",
+                           "integrator_f_ext_gradient", "plant_step_gradient", "plant_step_hessian"}) {
+    SCOPED_TRACE(name);
+    const int id = ops::find_op(name);
+    const ops::OpSpec& op = *ops::op_table()[id].spec;
+    const bool hessian = std::string(name) == "plant_step_hessian";
+    const bool step = std::string(op.family) == "integrators" || hessian, minv = std::string(name) == "minv";
+    const bool q_only = minv || std::string(name) == "crba";  // (M and M⁻¹ take q alone)
+    const bool plant = std::string(op.args[0].name) == "x";   // (x = [q; qd], then u)
+    const int o = plant ? 0 : 1;  // a step's arguments after x, or after q and qd
+    const bool step_value = step && op.n_out == 1;  // (the step's value: FD's rule, 8 per SM)
+    // auto: the team on a small batch (at most 8 per SM, 32 for a step's derivatives: 32 or 128
+    // samples on the interpret device's 4 SMs), or when nv >= 16 (but for ID); a mimic model keeps
+    // the sample kernel whatever is asked
+    EXPECT_EQ(p64->cuda()->kernel(), "auto");
+    EXPECT_EQ(p64->cuda()->kernel_for(id, 5), m.has_mimic() ? "sample" : "team");
+    const bool wide = m.nv >= 16 && std::string(name) != "inverse_dynamics";  // (ID: O(nb), never wide)
+    EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() || !wide ? "sample" : "team");
+    if (!on_device()) {  // the per-SM bound, at the interpret device's 4 SMs
+      const long bound = 4 * (step && !step_value ? 32 : 8);
+      EXPECT_EQ(p64->cuda()->kernel_for(id, bound), m.has_mimic() ? "sample" : "team");
+      EXPECT_EQ(p64->cuda()->kernel_for(id, bound + 1), m.has_mimic() || !wide ? "sample" : "team");
     }
+    if (step) EXPECT_EQ(p64->cuda()->kernel_for(id, 5, 1), "sample");  // (MuJoCo's convention: no team form)
+    p64->cuda()->set_kernel("team");
+    EXPECT_EQ(p64->cuda()->kernel_for(id, 1000000), m.has_mimic() ? "sample" : "team");
+    p64->cuda()->set_kernel("sample");
+    EXPECT_EQ(p64->cuda()->kernel_for(id, 5), "sample");
+    p64->cuda()->set_kernel("auto");
+    Inputs in = make_inputs(m, op, hessian ? 3 : 5, 11, true);
+    // ID: every output, tau and v; M⁻¹ and FD: their one output; ∇ID: every output, dtau alone, the
+    // halves alone; ∇FD: every output, the two matrices alone; the steps: every output, the last alone;
+    // M⁻¹ dense and upper; each step with every scheme (the 6 integrator types) and convention (0:
+    // Pinocchio's, 1: MuJoCo's)
+    const std::vector<unsigned> masks =
+        op.n_out == 1 ? std::vector<unsigned>{1u}
+        : step        ? std::vector<unsigned>{(1u << op.n_out) - 1, 1u << (op.n_out - 1)}
+        : op.n_out == 3 ? std::vector<unsigned>{0b111, 0b001, 0b110} : std::vector<unsigned>{0b1111, 0b0011};
+    for (int variant = 0; variant < (step ? 12 : minv ? 2 : 1); ++variant)
+    for (unsigned mask : masks) {
+      SCOPED_TRACE(mask);
+      SCOPED_TRACE(variant);
+      if (hessian) {  // the Hessian: integrator_type, output_convention, form (the reference one for H alone)
+        in.call.choice[3] = variant % 6, in.call.choice[5] = variant / 6, in.call.choice[6] = mask == 1u << 2;
+      } else if (step) {
+        in.call.choice[3 + o] = variant % 6, in.call.choice[6 + o] = variant / 6;
+      }
+      if (minv) in.call.choice[1] = 1 - variant;  // output_dense: True, then False
+      // MuJoCo's convention: the team asked for, which runs the step on one of its threads
+      const char* kernel = step && variant >= 6 ? "team" : "auto";
+      p64->cuda()->set_kernel(kernel), p32->cuda()->set_kernel(kernel);
+      const std::vector<double> ref = run<double>(serial, id, in, mask);
+      for (const char* where : {"shared", "global"}) {
+        p64->cuda()->set_work_memory(where), p32->cuda()->set_work_memory(where);
+        try {
+          EXPECT_LE(max_rel_err(run<double>(*p64, id, in, mask), ref), on_device() ? 1e-8 : float64_bound(op)) << where;
+          EXPECT_LE(max_rel_err(run<float>(*p32, id, in, mask), ref), float32_bound(op)) << where;
+        } catch (const std::invalid_argument& x) {  // (floating Atlas: a slice larger than a block's)
+          EXPECT_STREQ(where, "shared");
+          EXPECT_NE(std::string(x.what()).find("exceeds a block's shared memory"), std::string::npos) << x.what();
+        }
+      }
+      p64->cuda()->set_work_memory("auto"), p32->cuda()->set_work_memory("auto");
+      p64->cuda()->set_kernel("auto"), p32->cuda()->set_kernel("auto");
+    }
+    if (on_device()) continue;
+    // a device array's bad value: the team's check names it, as the host's does
+    Inputs bad = in;
+    bad.arrays[q_only ? 0 : 1][(hessian ? 2 : 3) * (q_only ? m.nq : m.nv)] = NAN;
+    const std::string msg = error_of([&] { run<double>(*p64, id, bad, ~0u, true); });
+    EXPECT_NE(msg.find(q_only ? "q[3]" : hessian ? "u[2]" : plant ? "u[3]" : "qd[3]"), std::string::npos) << msg;
   }
+}
+INSTANTIATE_TEST_SUITE_P(Models, CudaTeamModels, ::testing::ValuesIn(rbd_test::all_cases()), rbd_test::case_name);
+
+TEST(Cuda, UnknownKernelIsRefused) {
   const Model iiwa = Model::from_urdf_file(std::string(RBDKIT_ROBOTS_DIR) + "/iiwa.urdf", false);
   EXPECT_THROW(interpret_handle(iiwa, "float64")->cuda()->set_kernel("warp"), std::invalid_argument);
 }

@@ -197,7 +197,7 @@ TEST(HOST_LANES, FrameTurnFormsAreReadOffExactZeros) {
       R(rho, K == 0 ? 1 : 0) = 1e-300;  // no longer an exact zero: the general form
       EXPECT_EQ(frame_turn_form(R), -1);
     }
-  EXPECT_EQ(frame_turn_form(Mat3<double>::identity()), 0);  // no turn: every form, the first taken
+  EXPECT_EQ(frame_turn_form(Mat3<double>::identity()), 8);  // no turn: every form, the first tried taken
   EXPECT_EQ(frame_turn_form(axis_angle(Vec3<double>{0.6, 0.8, 0}, 0.3)), -1);
   EXPECT_EQ(frame_turn_form(axis_angle(Vec3<float>{0, 0, 1}, 0.3f)), 8);
 }

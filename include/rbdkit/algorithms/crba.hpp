@@ -60,9 +60,11 @@ inline void crba_act_columns_avx(const Transform<double>& X, double* F, int n) {
 // by a signed permutation P that takes axis K to axis ρ (a revolute joint about a frame axis under a
 // placement of quarter turns, or of none: P = 1, ρ = K), read off R's exact zeros: column K and row ρ
 // are zero but for R(ρ, K) = ±1, so that each other row has its two nonzeros in the two columns other
-// than K. -1: none (a general rotation)
+// than K. -1: none (a general rotation). z is tried first: most URDF joints turn about it, and R = 1,
+// which every K fits, then reads as Form 8, the one form the device also compiles
 template <typename S> RBD_HD_INLINE int frame_turn_form(const Mat3<S>& R) {
-  for (int k = 0; k < 3; ++k) {
+  for (int t = 0; t < 3; ++t) {
+    const int k = t == 0 ? 2 : t - 1;  // z, x, y
     const int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
     for (int rho = 0; rho < 3; ++rho) {
       const int r1 = rho == 2 ? 0 : rho + 1, r2 = rho == 0 ? 2 : rho - 1;
