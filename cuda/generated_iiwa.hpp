@@ -18,6 +18,7 @@
 #include "rbdkit/algorithms/rnea.hpp"
 #include "rbdkit/algorithms/rnea_derivatives.hpp"
 #include "rbdkit/codegen/robot_model.hpp"
+#include "rbdkit/codegen/unrolled.hpp"
 #include "rbdkit/plant/integrators.hpp"
 
 namespace rbdkit_generated {
@@ -98,8 +99,15 @@ struct Iiwa {
     return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);
   }
 
-  // M (nv x nv): the composite-rigid-body algorithm
+  // M (nv x nv): the composite-rigid-body algorithm (in double in host code without mimic joints its passes unrolled
+  // body by body over the constants: rbd::instance::Unrolled, the same M)
   template <class S> RBD_HD static void crba(const S* q, S* M) {
+#if !defined(__CUDACC__)
+    if constexpr (std::is_same<S, double>::value && has_mimic == 0) {
+      rbd::instance::unrolled_crba<Iiwa>(q, M);
+      return;
+    }
+#endif
     Call<S, true> c;
     rbd::crba(c.m, c.w, q, M);
   }

@@ -120,6 +120,7 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "#include \"rbdkit/algorithms/rnea.hpp\"\n"
        "#include \"rbdkit/algorithms/rnea_derivatives.hpp\"\n"
        "#include \"rbdkit/codegen/robot_model.hpp\"\n"
+       "#include \"rbdkit/codegen/unrolled.hpp\"\n"
        "#include \"rbdkit/plant/integrators.hpp\"\n\n"
        "namespace rbdkit_generated {\n\n"
        "struct " << name << " {\n"
@@ -181,9 +182,19 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "    Call<S, has_mimic != 0 || factored != 0>" << C <<
        "    return rbd::aba(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd);\n"
        "  }\n\n"
-       "  // M (nv x nv): the composite-rigid-body algorithm\n"
-       "  template <class S> RBD_HD static void crba(" << P << "const S* q, S* M) {\n"
-       "    Call<S, true>" << C <<
+       "  // M (nv x nv): the composite-rigid-body algorithm"
+    << (runtime_inertias ? "\n"
+                         : " (in double in host code without mimic joints its passes unrolled\n"
+                           "  // body by body over the constants: rbd::instance::Unrolled, the same M)\n")
+    << "  template <class S> RBD_HD static void crba(" << P << "const S* q, S* M) {\n"
+    << (runtime_inertias ? ""
+                         : "#if !defined(__CUDACC__)\n"
+                           "    if constexpr (std::is_same<S, double>::value && has_mimic == 0) {\n"
+                           "      rbd::instance::unrolled_crba<" + name + ">(q, M);\n"
+                           "      return;\n"
+                           "    }\n"
+                           "#endif\n")
+    << "    Call<S, true>" << C <<
        "    rbd::crba(c.m, c.w, q, M);\n"
        "  }\n\n"
        "  // M⁻¹ (nv x nv, dense); false if M is singular\n"

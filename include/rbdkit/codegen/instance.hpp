@@ -9,13 +9,17 @@
 // each other, the robot's sizes and the table of (registered operation's
 // name, per-sample kernel). The loader refuses an instance whose ABI,
 // fingerprint or sizes differ from its own and its model's. Each kernel
+// (but crba's: the same passes unrolled body by body, codegen/unrolled.hpp)
 // is the registry's own Op::run on the robot's bodies as a constant table (the
 // generated struct's constexpr bodies<double>): the workspace and the arrays are the
 // caller's, as the serial loop (ops::run_serial) passes them; the model view
 // it passes is the same robot's and is not read.
 #pragma once
 
+#include <type_traits>
+
 #include "rbdkit/codegen/robot_model.hpp"
+#include "rbdkit/codegen/unrolled.hpp"
 #include "rbdkit/ops/registry.hpp"
 #include "rbdkit/ops/table.hpp"
 
@@ -42,8 +46,15 @@ RBD_FLATTEN bool flattened_kernel(const ModelView<double>& view, Workspace<doubl
                                   const ops::OpArgs<double>& a) {
   return Op::run(RobotModel<R>::view(view), w, a);
 }
+// crba body by body (codegen/unrolled.hpp) on a robot without mimic joints
+template <class R>
+bool unrolled_crba_kernel(const ModelView<double>&, Workspace<double>&, const ops::OpArgs<double>& a) {
+  unrolled_crba<R>(a.in[0], a.out[0]);
+  return true;
+}
 template <class R, class Op> constexpr ops::Kernel<double> kernel() {
-  if constexpr (Op::spec.kernel == ops::kCalled) return &called_kernel<R, Op>;
+  if constexpr (std::is_same<Op, ops::Crba>::value && !R::has_mimic) return &unrolled_crba_kernel<R>;
+  else if constexpr (Op::spec.kernel == ops::kCalled) return &called_kernel<R, Op>;
   else return &flattened_kernel<R, Op>;
 }
 
