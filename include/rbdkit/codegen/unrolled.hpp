@@ -24,6 +24,7 @@
 #include "rbdkit/codegen/robot_model.hpp"
 
 // host code only (the table is a host constant): always inlined, so the bodies' constants reach one function
+// (undefined again at the end of this header)
 #define RBD_HOST_INLINE inline __attribute__((always_inline))
 
 namespace rbd {
@@ -142,3 +143,5 @@ template <class R> inline void unrolled_crba(const double* q, double* M) { Unrol
 
 }  // namespace instance
 }  // namespace rbd
+
+#undef RBD_HOST_INLINE
