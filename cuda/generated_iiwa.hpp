@@ -112,9 +112,14 @@ struct Iiwa {
     rbd::crba(c.m, c.w, q, M);
   }
 
-  // M⁻¹ (nv x nv, dense); false if M is singular
+  // M⁻¹ (nv x nv, dense); false if M is singular (in double in host code without mimic joints its crba unrolled as
+  // crba's)
   template <class S> RBD_HD static bool minv(const S* q, S* Minv) {
     Call<S, true> c;
+#if !defined(__CUDACC__)
+    if constexpr (std::is_same<S, double>::value && has_mimic == 0)
+      return rbd::instance::unrolled_minv<Iiwa>(c.w, q, true, Minv);
+#endif
     return rbd::minv(c.m, c.w, q, true, Minv);
   }
 

@@ -197,10 +197,18 @@ std::string generate_header(const Model& model, const std::string& name, const s
     << "    Call<S, true>" << C <<
        "    rbd::crba(c.m, c.w, q, M);\n"
        "  }\n\n"
-       "  // M⁻¹ (nv x nv, dense); false if M is singular\n"
-       "  template <class S> RBD_HD static bool minv(" << P << "const S* q, S* Minv) {\n"
-       "    Call<S, true>" << C <<
-       "    return rbd::minv(c.m, c.w, q, true, Minv);\n"
+       "  // M⁻¹ (nv x nv, dense); false if M is singular"
+    << (runtime_inertias ? "\n"
+                         : " (in double in host code without mimic joints its crba unrolled as\n"
+                           "  // crba's)\n")
+    << "  template <class S> RBD_HD static bool minv(" << P << "const S* q, S* Minv) {\n"
+       "    Call<S, true>" << C
+    << (runtime_inertias ? ""
+                         : "#if !defined(__CUDACC__)\n"
+                           "    if constexpr (std::is_same<S, double>::value && has_mimic == 0)\n"
+                           "      return rbd::instance::unrolled_minv<" + name + ">(c.w, q, true, Minv);\n"
+                           "#endif\n")
+    << "    return rbd::minv(c.m, c.w, q, true, Minv);\n"
        "  }\n\n"
        "  // ∂tau/∂q, ∂tau/∂qd (nv x nv each) of inverse_dynamics (qdd may be null: zero)\n"
        "  template <class S>\n"

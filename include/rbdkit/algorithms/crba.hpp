@@ -188,13 +188,13 @@ template <typename S> RBD_HD void crba_act_columns(const Transform<S>& X, S* F, 
 enum MassEntries { kMassFull, kMassUpper, kMassLowerPattern };
 
 // writes M's rows of body i's DoFs over its subtree's columns [v_i, v_i + nv_subtree) from
-// the columns F (nv x 6 row-major, each in body i's frame) into the upper triangle, and mirrored into
-// the lower one (E: MassEntries, which of the two). Over the pass every entry of M that can be nonzero
-// is assigned, off the diagonal once (the columns before v_i: by i's ancestors' rows); the others
-// (neither in i's subtree nor its ancestors') stay as the pass found them.
+// the columns F (F(c, k): component k of column c, each in body i's frame) into the upper triangle,
+// and mirrored into the lower one (E: MassEntries, which of the two). Over the pass every entry of M
+// that can be nonzero is assigned, off the diagonal once (the columns before v_i: by i's ancestors'
+// rows); the others (neither in i's subtree nor its ancestors') stay as the pass found them.
 // fc, sign: joint_frame_column(b, sign)
-template <int E, typename S>
-RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign, const S* F, S* M) {
+template <int E, typename S, typename Columns>
+RBD_HD_INLINE void crba_store_rows_of(const ModelView<S>& m, int i, int fc, const S& sign, const Columns& F, S* M) {
   constexpr bool upper = E != kMassLowerPattern, lower = E != kMassUpper;
   const BodyDesc<S>& b = m.body[i];
   const int nv = m.nv, vi = b.v_idx, c_end = vi + b.nv_subtree;
@@ -203,20 +203,35 @@ RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign,
     if (lower) M[c * nv + r] = x;
   };
   if (fc >= 0) {  // S = sign·e_fc: Sᵀ F is one component
-    for (int c = vi; c < c_end; ++c) put(vi, c, sign * F[6 * c + fc]);
+    for (int c = vi; c < c_end; ++c) put(vi, c, sign * F(c, fc));
   } else if (b.type == kFree) {  // S = 1: the rows are the columns F themselves
     for (int c = vi; c < vi + 6; ++c)  // the joint's own block: its upper triangle, mirrored
-      for (int l = 0; l <= c - vi; ++l) put(vi + l, c, F[6 * c + l]);
+      for (int l = 0; l <= c - vi; ++l) put(vi + l, c, F(c, l));
     for (int c = vi + 6; c < c_end; ++c)
-      for (int l = 0; l < 6; ++l) put(vi + l, c, F[6 * c + l]);
+      for (int l = 0; l < 6; ++l) put(vi + l, c, F(c, l));
   } else {
     for (int c = vi; c < c_end; ++c) {
       S x[6];
-      joint_project(b, load_force(F + 6 * c), x);
+      joint_project(b, Force<S>{{F(c, 0), F(c, 1), F(c, 2)}, {F(c, 3), F(c, 4), F(c, 5)}}, x);
       // the joint's own block: its upper triangle only (l <= c - vi), mirrored
       for (int l = 0; l < b.nv && vi + l <= c; ++l) put(vi + l, c, x[l]);
     }
   }
+}
+// the same, F nv x 6 row-major (column c at F + 6 c)
+template <int E, typename S>
+RBD_HD void crba_store_rows(const ModelView<S>& m, int i, int fc, const S& sign, const S* F, S* M) {
+  crba_store_rows_of<E>(m, i, fc, sign, [F](int c, int k) { return F[6 * c + k]; }, M);
+}
+
+// body i's columns F_c = Ic s_c (c = v_i ..), each written by put(c, F_c): for a joint about a frame
+// axis (fc >= 0: joint_frame_column(b, sign)) sign times a column of Ic, for a free joint Ic's six
+// columns, no products; else Ic times each column of S
+template <typename S, typename Put>
+RBD_HD_INLINE void crba_joint_columns(const BodyDesc<S>& b, int fc, const S& sign, const Inertia<S>& Ic, Put&& put) {
+  if (fc >= 0) put(b.v_idx, sign * Ic.column(fc));
+  else if (b.type == kFree) for (int k = 0; k < 6; ++k) put(b.v_idx + k, Ic.column(k));
+  else for (int k = 0; k < b.nv; ++k) put(b.v_idx + k, Ic * joint_subspace_col(b, k));
 }
 
 // backward pass, bodies last to first, on M zeroed first unless E (MassEntries) is the lower
@@ -237,9 +252,7 @@ template <int E, typename S> RBD_HD void crba_body_backward_pass(const ModelView
     const int vi = b.v_idx, c_end = vi + b.nv_subtree;
     S sign;
     const int fc = joint_frame_column(b, sign);
-    if (fc >= 0) store(sign * w.Ic[i].column(fc), F + 6 * vi);  // S = sign·e_fc: a column of Ic
-    else if (b.type == kFree) for (int k = 0; k < 6; ++k) store(w.Ic[i].column(k), F + 6 * (vi + k));
-    else for (int k = 0; k < b.nv; ++k) store(w.Ic[i] * joint_subspace_col(b, k), F + 6 * (vi + k));
+    crba_joint_columns(b, fc, sign, w.Ic[i], [F](int c, const Force<S>& f) { store(f, F + 6 * c); });
     crba_store_rows<E>(m, i, fc, sign, F, M);
     if (b.parent >= 0) {
       const Transform<S>& X = w.X_parent[i];

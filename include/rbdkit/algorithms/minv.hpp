@@ -454,21 +454,18 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
   });
 }
 
-// Minv = M⁻¹ by crba and its factorisation (mass_factor), for a model without mimic joints (bodies
-// depth-first: minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when
-// dense. M's lower tree pattern (crba_factored), then its factor, in w.dense2 (its other entries
-// stale), the DoF tree in w.so_i (2 nv ints); writes w.X_parent (placed:
-// as crba's), w.Ic (composites) and w.F as crba does, not minv_backward_pass's placements. false where
-// mass_factor refuses a pivot (stricter than the passes' check): minv then runs the passes, whose
-// verdict stands
-template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
-                                                S* Minv, bool placed = false) {
+// minv_factored after its crba: from M's lower tree pattern in w.dense2 and the composites in w.Ic (as
+// crba<kMassLowerPattern> leaves them), the DoF tree into w.so_i, M's factor in place over w.dense2,
+// then M⁻¹'s rows, root first (Minv: as minv_factored's; false as there)
+template <typename S>
+RBD_HD bool minv_of_mass_pattern(const ModelView<S>& m, Workspace<S>& w, bool dense, S* Minv) {
   const int n = m.nv;
   S* H = w.dense2;
   int* lambda = w.so_i;
   int* run = w.so_i + n;
   for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
-  if (!crba_factored(m, w, q, placed, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
+  dof_tree(m, lambda, run);
+  if (!mass_factor(m, w, lambda, run, H, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
   // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
   for (int r = 0; r < n; ++r) {
     int c0 = r;
@@ -490,6 +487,18 @@ template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace
     for (int r = 1; r < n; ++r)
       for (int c = 0; c < r; ++c) Minv[r * n + c] = S(0);
   return true;
+}
+
+// Minv = M⁻¹ by crba and its factorisation (mass_factor), for a model without mimic joints (bodies
+// depth-first: minv_factored_pays is false otherwise); the upper triangle, and the lower mirrored when
+// dense. M's lower tree pattern (crba<kMassLowerPattern>), then its factor, in w.dense2 (its other
+// entries stale), the DoF tree in w.so_i (2 nv ints); writes w.X_parent (placed: as crba's), w.Ic
+// (composites) and w.F as crba does, not minv_backward_pass's placements. false where mass_factor
+// refuses a pivot (stricter than the passes' check): minv then runs the passes, whose verdict stands
+template <typename S> RBD_HD bool minv_factored(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
+                                                S* Minv, bool placed = false) {
+  crba<kMassLowerPattern>(m, w, q, w.dense2, placed);
+  return minv_of_mass_pattern(m, w, dense, Minv);
 }
 
 // M⁻¹(q) by the direct passes, nv x nv row-major. dense: mirror the upper triangle into the lower;
