@@ -375,7 +375,7 @@ RBD_HD void crba(const ModelView<S>& m, Workspace<S>& w, const S* q, S* M, bool 
 // consecutive DoFs that ends at k (lambda[j] = j - 1 for j in (run[k], k]). A DoF's ancestors are then
 // a few contiguous runs: [run[k], k], then [run[e], e] for e = lambda[run[k]], and so on up to the
 // world (one run on a chain like the iiwa's). Bodies in depth-first order (no mimic joints)
-template <typename S> RBD_HD void dof_tree(const ModelView<S>& m, int* lambda, int* run) {
+template <typename S> RBD_HD constexpr void dof_tree(const ModelView<S>& m, int* lambda, int* run) {
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
     const BodyDesc<S>* p = b.parent >= 0 ? &m.body[b.parent] : nullptr;
@@ -393,6 +393,34 @@ template <typename F> RBD_HD_INLINE void for_dof_path(const int* lambda, const i
   for (int e = k; e >= 0; e = lambda[run[e]]) f(run[e], e);
 }
 
+// the DoF tree as the factorisation walks it (mass_factor_with, minv.hpp's minv_of_factor_with), here from
+// dof_tree's arrays at run time, a DoF an int; codegen/unrolled.hpp walks a robot's constant tree, a DoF
+// an integral constant, with every loop bound known to the compiler
+struct DofWalk {
+  const int* lambda;
+  const int* run;
+  int n;  // nv
+  RBD_HD_INLINE int parent(int k) const { return lambda[k]; }
+  // f(j0, j1) for each run [j0, j1] of DoF e's path (e and its ancestors), from e up; none for e < 0
+  template <class F> RBD_HD_INLINE void runs(int e, F&& f) const { for_dof_path(lambda, run, e, f); }
+  // f(i) for each DoF i of e's path, nearest first
+  template <class F> RBD_HD_INLINE void dofs(int e, F&& f) const {
+    runs(e, [&](int i0, int i1) {
+      for (int i = i1; i >= i0; --i) f(i);
+    });
+  }
+  // f(k) for k = n-1 .. 0 while f returns true; false if one did not
+  template <class F> RBD_HD_INLINE bool each_down(F&& f) const {
+    for (int k = n - 1; k >= 0; --k)
+      if (!f(k)) return false;
+    return true;
+  }
+  // f(k) for k = 0 .. n-1
+  template <class F> RBD_HD_INLINE void each_up(F&& f) const {
+    for (int k = 0; k < n; ++k) f(k);
+  }
+};
+
 // whether minv and aba take the factorisation: Σ_i nv_i · nv_subtree_i, the (ancestor DoF, DoF) pairs of the
 // tree (L's nonzeros below the diagonal, plus the joints' own), at most 9 per DoF. Measured (-march=native
 // harness, factored against the passes): iiwa 4 per DoF (375 against 582 ns), fixed HyQ 2 (432 against
@@ -405,6 +433,26 @@ template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
   return pairs <= 9L * m.nv;
 }
 
+// y[j] -= a x[j] for j in [j0, j1]: in host code RBD_HOST_VECTOR_BYTES at a time, then one by one (each
+// entry's one operation either way; over a constant tree, codegen/unrolled.hpp, the bounds are constants)
+template <typename S> RBD_HD_INLINE void sub_scaled_run(S* RBD_RESTRICT y, const S* RBD_RESTRICT x, S a, int j0, int j1) {
+  int j = j0;
+#if defined(RBD_HOST_LANES)
+  if constexpr (std::is_same<S, double>::value) {
+    typedef double V __attribute__((vector_size(RBD_HOST_VECTOR_BYTES)));
+    constexpr int L = RBD_HOST_LANES;
+    for (; j + L <= j1 + 1; j += L) {
+      V xv, yv;
+      __builtin_memcpy(&xv, x + j, sizeof xv);
+      __builtin_memcpy(&yv, y + j, sizeof yv);
+      yv -= a * xv;
+      __builtin_memcpy(y + j, &yv, sizeof yv);
+    }
+  }
+#endif
+  for (; j <= j1; ++j) y[j] -= a * x[j];
+}
+
 // H (nv x nv, row-major, M from crba: its lower triangle) <- L below the diagonal, in place, leaves
 // first; dinv[k·stride] <- 1/D_k. lambda, run: dof_tree's. Each pivot's scale first (in dinv):
 // Σ_r Ic_rr s_r² of the joint's column s against its composite inertia (w.Ic, as crba leaves it), the
@@ -412,10 +460,10 @@ template <typename S> RBD_HD bool minv_factored_pays(const ModelView<S>& m) {
 // noise, is singular as in the direct passes. false if some D_k is at the rounding level of its terms
 // or below (pivot_positive): stricter than the passes' check on the articulated inertia (a light link
 // under a coaxial joint carrying a heavy one has D_k far below sᵀ Ic s), so a caller then runs the
-// passes, whose verdict stands
-template <typename S>
-RBD_HD bool mass_factor(const ModelView<S>& m, const Workspace<S>& w, const int* lambda, const int* run, S* H,
-                        S* dinv, int stride) {
+// passes, whose verdict stands. walk: the DoF tree (DofWalk)
+template <typename S, typename Walk>
+RBD_HD_INLINE bool mass_factor_with(const ModelView<S>& m, const Workspace<S>& w, const Walk& walk, S* H, S* dinv,
+                                    int stride) {
   const int n = m.nv;
   for (int i = 0; i < m.nb; ++i) {
     const BodyDesc<S>& b = m.body[i];
@@ -427,24 +475,26 @@ RBD_HD bool mass_factor(const ModelView<S>& m, const Workspace<S>& w, const int*
     }
   }
   // LTDL; each ancestor i of k (nearest first) takes H_i· -= a H_k· over its own path
-  for (int k = n - 1; k >= 0; --k) {
+  return walk.each_down([&](auto k) {
     const S dk = H[k * n + k];
     if (!pivot_positive(dk, dinv[k * stride])) return false;
     const S di = S(1) / dk;
     dinv[k * stride] = di;
     S* RBD_RESTRICT Hk = H + k * n;
-    for_dof_path(lambda, run, lambda[k], [&](int i0, int i1) {
-      for (int i = i1; i >= i0; --i) {
-        const S a = Hk[i] * di;
-        S* RBD_RESTRICT Hi = H + i * n;
-        for_dof_path(lambda, run, i, [&](int j0, int j1) {
-          for (int j = j0; j <= j1; ++j) Hi[j] -= a * Hk[j];
-        });
-        Hk[i] = a;
-      }
+    walk.dofs(walk.parent(k), [&](auto i) {
+      const S a = Hk[i] * di;
+      S* RBD_RESTRICT Hi = H + i * n;
+      walk.runs(i, [&](int j0, int j1) { sub_scaled_run(Hi, Hk, a, j0, j1); });
+      Hk[i] = a;
     });
-  }
-  return true;
+    return true;
+  });
+}
+// the same on dof_tree's arrays
+template <typename S>
+RBD_HD bool mass_factor(const ModelView<S>& m, const Workspace<S>& w, const int* lambda, const int* run, S* H,
+                        S* dinv, int stride) {
+  return mass_factor_with(m, w, DofWalk{lambda, run, m.nv}, H, dinv, stride);
 }
 
 // M(q)'s lower tree pattern by crba into w.dense2 (placed: as crba's; its other entries are left as

@@ -455,38 +455,37 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
 }
 
 // minv_factored after its crba: from M's lower tree pattern in w.dense2 and the composites in w.Ic (as
-// crba<kMassLowerPattern> leaves them), the DoF tree into w.so_i, M's factor in place over w.dense2,
-// then M⁻¹'s rows, root first (Minv: as minv_factored's; false as there)
-template <typename S>
-RBD_HD bool minv_of_mass_pattern(const ModelView<S>& m, Workspace<S>& w, bool dense, S* Minv) {
+// crba<kMassLowerPattern> leaves them), M's factor in place over w.dense2 (mass_factor_with), then M⁻¹'s
+// rows, root first (Minv: as minv_factored's; false as there). walk: the DoF tree (crba.hpp's DofWalk)
+template <typename S, typename Walk>
+RBD_HD_INLINE bool minv_of_factor_with(const ModelView<S>& m, Workspace<S>& w, const Walk& walk, bool dense, S* Minv) {
   const int n = m.nv;
-  S* H = w.dense2;
-  int* lambda = w.so_i;
-  int* run = w.so_i + n;
+  const S* H = w.dense2;
   for (int k = 0; k < n * n; ++k) Minv[k] = S(0);
-  dof_tree(m, lambda, run);
-  if (!mass_factor(m, w, lambda, run, H, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
+  if (!mass_factor_with(m, w, walk, w.dense2, Minv, n + 1)) return false;  // 1/D_k on Minv's diagonal
   // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
-  for (int r = 0; r < n; ++r) {
-    int c0 = r;
-    for_dof_path(lambda, run, r, [&](int j0, int) { c0 = j0; });
+  walk.each_up([&](auto r) {
+    int c0 = r;  // the first DoF of r's path
+    walk.runs(r, [&](int j0, int) { c0 = j0; });
     S* RBD_RESTRICT zr = Minv + r * n;
     const S* Hr = H + r * n;
-    auto ancestors = [&](auto&& f) {  // f(j) for r's ancestor DoFs, nearest first (none at a root)
-      for_dof_path(lambda, run, lambda[r], [&](int j0, int j1) {
-        for (int j = j1; j >= j0; --j) f(j);
-      });
-    };
+    auto ancestors = [&](auto&& f) { walk.dofs(walk.parent(r), f); };  // f(j), nearest first (none at a root)
     minv_factored_row(Hr, Minv, n, c0, r, zr, ancestors);
     S d = zr[r];
     ancestors([&](int j) { d -= Hr[j] * zr[j]; });
     zr[r] = d;
     for (int c = c0; c < r; ++c) Minv[c * n + r] = zr[c];
-  }
+  });
   if (!dense)
     for (int r = 1; r < n; ++r)
       for (int c = 0; c < r; ++c) Minv[r * n + c] = S(0);
   return true;
+}
+// the same with the DoF tree from dof_tree, into w.so_i (2 nv ints)
+template <typename S>
+RBD_HD bool minv_of_mass_pattern(const ModelView<S>& m, Workspace<S>& w, bool dense, S* Minv) {
+  dof_tree(m, w.so_i, w.so_i + m.nv);
+  return minv_of_factor_with(m, w, DofWalk{w.so_i, w.so_i + m.nv, m.nv}, dense, Minv);
 }
 
 // Minv = M⁻¹ by crba and its factorisation (mass_factor), for a model without mimic joints (bodies

@@ -221,15 +221,56 @@ template <class R> struct Unrolled {
     crba_pass<E>(q, M, Ic);
   }
 
+  // ---- the DoF tree (crba.hpp's dof_tree) as constants, walked as DofWalk walks its arrays with each DoF
+  // an integral constant: the factorisation's and M⁻¹'s loops over runs then have constant bounds
+  struct Tree {
+    int lambda[nv], run[nv];
+  };
+  static constexpr Tree tree() {
+    Tree t{};
+    dof_tree(ModelView<double>{nb, R::nq, nv, R::has_mimic, kBodies<R, double>.body}, t.lambda, t.run);
+    return t;
+  }
+  static constexpr Tree kTree = tree();
+  template <int k> using Dof = std::integral_constant<int, k>;
+  struct ConstantWalk {
+    template <int k> static constexpr Dof<kTree.lambda[k]> parent(Dof<k>) { return {}; }
+    template <int e, class F> RBD_HOST_INLINE static void runs(Dof<e>, F&& f) {
+      if constexpr (e >= 0) {
+        f(kTree.run[e], e);
+        runs(Dof<kTree.lambda[kTree.run[e]]>{}, f);
+      }
+    }
+    template <int i, int i0, class F> RBD_HOST_INLINE static void down(F&& f) {
+      if constexpr (i >= i0) {
+        f(Dof<i>{});
+        down<i - 1, i0>(f);
+      }
+    }
+    template <int e, class F> RBD_HOST_INLINE static void dofs(Dof<e>, F&& f) {
+      if constexpr (e >= 0) {
+        down<e, kTree.run[e]>(f);
+        dofs(Dof<kTree.lambda[kTree.run[e]]>{}, f);
+      }
+    }
+    template <class F, int... k> RBD_HOST_INLINE static bool down_all(F&& f, std::integer_sequence<int, k...>) {
+      return (f(Dof<nv - 1 - k>{}) && ...);
+    }
+    template <class F> RBD_HOST_INLINE static bool each_down(F&& f) { return down_all(f, std::make_integer_sequence<int, nv>{}); }
+    template <class F, int... k> RBD_HOST_INLINE static void up_all(F&& f, std::integer_sequence<int, k...>) {
+      (f(Dof<k>{}), ...);
+    }
+    template <class F> RBD_HOST_INLINE static void each_up(F&& f) { up_all(f, std::make_integer_sequence<int, nv>{}); }
+  };
+
   // M⁻¹(q) (minv's: nv x nv row-major, dense or the upper triangle) by minv_factored with its crba body
-  // by body where the factorisation pays (as minv), else, or where its pivot check fails, by the
-  // passes; w: the full workspace. false if M is not PD
+  // by body and the factorisation over the constant DoF tree, else (mimic joints excluded: bodies
+  // depth-first) where its pivot check fails, by the passes, whose verdict stands; w: the full
+  // workspace. false if M is not PD
   __attribute__((flatten)) static bool minv(Workspace<double>& w, const double* q, bool dense, double* Minv) {
     const ModelView<double> m = RobotModel<R>::view(ModelView<double>{});
-    if (minv_factored_pays(m)) {
-      crba_pass<kMassLowerPattern>(q, w.dense2, w.Ic);
-      if (minv_of_mass_pattern(m, w, dense, Minv)) return true;
-    }
+    crba_pass<kMassLowerPattern>(q, w.dense2, w.Ic);
+    if (minv_of_factor_with(m, w, ConstantWalk{}, dense, Minv)) return true;
     return minv_passes(m, w, q, dense, Minv);
   }
 };
