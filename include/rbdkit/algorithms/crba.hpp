@@ -405,7 +405,7 @@ struct DofWalk {
   template <class F> RBD_HD_INLINE void runs(int e, F&& f) const { for_dof_path(lambda, run, e, f); }
   // f(i) for each DoF i of e's path, nearest first
   template <class F> RBD_HD_INLINE void dofs(int e, F&& f) const {
-    runs(e, [&](int i0, int i1) {
+    runs(e, [&](int i0, int i1) RBD_LAMBDA_INLINE {
       for (int i = i1; i >= i0; --i) f(i);
     });
   }
@@ -481,10 +481,10 @@ RBD_HD_INLINE bool mass_factor_with(const ModelView<S>& m, const Workspace<S>& w
     const S di = S(1) / dk;
     dinv[k * stride] = di;
     S* RBD_RESTRICT Hk = H + k * n;
-    walk.dofs(walk.parent(k), [&](auto i) {
+    walk.dofs(walk.parent(k), [&](auto i) RBD_LAMBDA_INLINE {
       const S a = Hk[i] * di;
       S* RBD_RESTRICT Hi = H + i * n;
-      walk.runs(i, [&](int j0, int j1) { sub_scaled_run(Hi, Hk, a, j0, j1); });
+      walk.runs(i, [&](int j0, int j1) RBD_LAMBDA_INLINE { sub_scaled_run(Hi, Hk, a, j0, j1); });
       Hk[i] = a;
     });
     return true;

@@ -438,7 +438,7 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
     constexpr int L = RBD_HOST_VECTOR_BYTES / sizeof(S);
     for (; c + 4 * L <= c1; c += 4 * L) {
       V acc[4] = {V{}, V{}, V{}, V{}};
-      ancestors([&](int j) {
+      ancestors([&](int j) RBD_LAMBDA_INLINE {
         const S l = Hr[j];
         for (int k = 0; k < 4; ++k) acc[k] -= l * lanes_load<V>(Z + j * n + c + k * L);
       });
@@ -446,10 +446,10 @@ RBD_HD_INLINE void minv_factored_row(const S* Hr, const S* RBD_RESTRICT Z, int n
     }
   }
 #endif
-  minv_columns<S>(c, c1, [&](int cc, auto lane) {
+  minv_columns<S>(c, c1, [&](int cc, auto lane) RBD_LAMBDA_INLINE {
     using T = decltype(lane);
     T acc = lane;  // (zero)
-    ancestors([&](int j) { acc = acc - Hr[j] * lanes_load<T>(Z + j * n + cc); });
+    ancestors([&](int j) RBD_LAMBDA_INLINE { acc = acc - Hr[j] * lanes_load<T>(Z + j * n + cc); });
     lanes_store(zr + cc, acc);
   });
 }
@@ -466,13 +466,13 @@ RBD_HD_INLINE bool minv_of_factor_with(const ModelView<S>& m, Workspace<S>& w, c
   // Z = M⁻¹, rows from the root; row r over [c0, r) accumulated over r's ancestors in registers
   walk.each_up([&](auto r) {
     int c0 = r;  // the first DoF of r's path
-    walk.runs(r, [&](int j0, int) { c0 = j0; });
+    walk.runs(r, [&](int j0, int) RBD_LAMBDA_INLINE { c0 = j0; });
     S* RBD_RESTRICT zr = Minv + r * n;
     const S* Hr = H + r * n;
-    auto ancestors = [&](auto&& f) { walk.dofs(walk.parent(r), f); };  // f(j), nearest first (none at a root)
+    auto ancestors = [&](auto&& f) RBD_LAMBDA_INLINE { walk.dofs(walk.parent(r), f); };  // f(j), nearest first (none at a root)
     minv_factored_row(Hr, Minv, n, c0, r, zr, ancestors);
     S d = zr[r];
-    ancestors([&](int j) { d -= Hr[j] * zr[j]; });
+    ancestors([&](int j) RBD_LAMBDA_INLINE { d -= Hr[j] * zr[j]; });
     zr[r] = d;
     for (int c = c0; c < r; ++c) Minv[c * n + r] = zr[c];
   });

@@ -63,6 +63,15 @@
 #define RBD_HOST_AVX 1
 #endif
 #endif
+// a lambda always inlined where it is called (written after its parameter list), in host code from g++
+// and clang: the inner walks of M's factorisation and of M⁻¹'s rows over a constant DoF tree
+// (codegen/unrolled.hpp), which a large instance otherwise leaves as calls per ancestor DoF. (Each DoF's
+// own step stays the compiler's choice: on floating Atlas inlining those too made the code slower)
+#if !defined(__CUDACC__) && (defined(__GNUC__) || defined(__clang__))
+#define RBD_LAMBDA_INLINE __attribute__((always_inline))
+#else
+#define RBD_LAMBDA_INLINE
+#endif
 // a body or coordinate loop that nvcc unrolls whole where its trip count is a compile-time constant
 // (a per-robot instance's model: a robot's sizes and bodies as constants, cuda/instance.cuh), which
 // turns the bodies' joint types, parents and constants into immediates and keeps a chain's values in
