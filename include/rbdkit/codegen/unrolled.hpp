@@ -224,7 +224,7 @@ template <class R> struct Unrolled {
   // ---- the DoF tree (crba.hpp's dof_tree) as constants, walked as DofWalk walks its arrays with each DoF
   // an integral constant: the factorisation's and M⁻¹'s loops over runs then have constant bounds
   struct Tree {
-    int lambda[nv], run[nv];
+    int lambda[nv > 0 ? nv : 1], run[nv > 0 ? nv : 1];  // (a robot with no DoF: one unused entry)
   };
   static constexpr Tree tree() {
     Tree t{};
