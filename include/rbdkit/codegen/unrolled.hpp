@@ -136,7 +136,7 @@ template <class R> struct Unrolled {
   RBD_HOST_INLINE static T rotate_row(const Transform<double>& X, const T& x0, const T& x1, const T& x2) {
     constexpr bool z0 = rotation_zero<I>(r, 0), z1 = rotation_zero<I>(r, 1), z2 = rotation_zero<I>(r, 2);
     const double* Rr = X.R.m + 3 * r;
-    T y = x0 * 0.0;
+    T y = x0 * 0.0;  // (a rotation's row has a nonzero entry: overwritten below)
     if constexpr (!z0) y = Rr[0] * x0;
     if constexpr (!z1) y = z0 ? Rr[1] * x1 : y + Rr[1] * x1;
     if constexpr (!z2) y = z0 && z1 ? Rr[2] * x2 : y + Rr[2] * x2;
@@ -263,9 +263,9 @@ template <class R> struct Unrolled {
     template <class F> RBD_HOST_INLINE static void each_up(F&& f) { up_all(f, std::make_integer_sequence<int, nv>{}); }
   };
 
-  // M⁻¹(q) (minv's: nv x nv row-major, dense or the upper triangle) by minv_factored with its crba body
-  // by body and the factorisation over the constant DoF tree, else (mimic joints excluded: bodies
-  // depth-first) where its pivot check fails, by the passes, whose verdict stands; w: the full
+  // M⁻¹(q) (minv's: nv x nv row-major, dense or the upper triangle) by minv_factored, its crba body by
+  // body and its factorisation over the constant DoF tree, on every robot (crba_pass: no mimic joints);
+  // where the factorisation's pivot check refuses, by the passes, whose verdict stands. w: the full
   // workspace. false if M is not PD
   __attribute__((flatten)) static bool minv(Workspace<double>& w, const double* q, bool dense, double* Minv) {
     const ModelView<double> m = RobotModel<R>::view(ModelView<double>{});
