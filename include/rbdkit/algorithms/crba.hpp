@@ -409,6 +409,14 @@ struct DofWalk {
       for (int i = i1; i >= i0; --i) f(i);
     });
   }
+  // f(i) for each DoF i of e's path, root first: the runs from the root's down (each found by climbing
+  // from e to the run below the last one visited; a path has few runs), each run in increasing order
+  template <class F> RBD_HD_INLINE void dofs_from_root(int e, F&& f) const {
+    for (int above = -1, k = e; k != above && e >= 0; above = k, k = e) {
+      while (lambda[run[k]] != above) k = lambda[run[k]];
+      for (int i = run[k]; i <= k; ++i) f(i);
+    }
+  }
   // f(k) for k = n-1 .. 0 while f returns true; false if one did not
   template <class F> RBD_HD_INLINE bool each_down(F&& f) const {
     for (int k = n - 1; k >= 0; --k)

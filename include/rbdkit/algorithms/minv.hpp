@@ -425,7 +425,7 @@ RBD_HD void minv_team(const Team& t, const ModelView<S>& m, Workspace<S>& w, con
 // docs/performance.md's ninth round).
 
 // zr[c] = -Σ_j Hr[j] Z[j·n + c] for c in [c0, c1), over the DoFs j that ancestors(f) visits (f(j) for
-// each, nearest first): a row of M⁻¹ below its diagonal from its ancestors' rows. In host code that
+// each, in its order): a row of M⁻¹ below its diagonal from its ancestors' rows. In host code that
 // nvcc does not see, for double and float, four vectors of columns (RBD_HOST_VECTOR_BYTES each) per
 // walk over the ancestors; the rest by minv_columns. Each entry summed in the same order
 template <typename S, typename Ancestors>
@@ -469,7 +469,8 @@ RBD_HD_INLINE bool minv_of_factor_with(const ModelView<S>& m, Workspace<S>& w, c
     walk.runs(r, [&](int j0, int) RBD_LAMBDA_INLINE { c0 = j0; });
     S* RBD_RESTRICT zr = Minv + r * n;
     const S* Hr = H + r * n;
-    auto ancestors = [&](auto&& f) RBD_LAMBDA_INLINE { walk.dofs(walk.parent(r), f); };  // f(j), nearest first (none at a root)
+    // f(j) for r's ancestors, root first (none at a root): the parent's row, the newest, enters each sum last
+    auto ancestors = [&](auto&& f) RBD_LAMBDA_INLINE { walk.dofs_from_root(walk.parent(r), f); };
     minv_factored_row(Hr, Minv, n, c0, r, zr, ancestors);
     S d = zr[r];
     ancestors([&](int j) RBD_LAMBDA_INLINE { d -= Hr[j] * zr[j]; });
