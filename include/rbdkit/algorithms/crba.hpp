@@ -412,9 +412,12 @@ struct DofWalk {
   // f(i) for each DoF i of e's path, root first: the runs from the root's down (each found by climbing
   // from e to the run below the last one visited; a path has few runs), each run in increasing order
   template <class F> RBD_HD_INLINE void dofs_from_root(int e, F&& f) const {
-    for (int above = -1, k = e; k != above && e >= 0; above = k, k = e) {
+    if (e < 0) return;
+    for (int above = -1; above != e;) {  // above: the last DoF visited (-1: none yet)
+      int k = e;
       while (lambda[run[k]] != above) k = lambda[run[k]];
       for (int i = run[k]; i <= k; ++i) f(i);
+      above = k;
     }
   }
   // f(k) for k = n-1 .. 0 while f returns true; false if one did not
