@@ -131,12 +131,18 @@ struct Iiwa {
     rbd::rnea_derivatives(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, dtau_dq, dtau_dqd);
   }
 
-  // ∂qdd/∂q, ∂qdd/∂qd (nv x nv each) of qdd = aba(q, qd, tau); false if M is singular
+  // ∂qdd/∂q, ∂qdd/∂qd (nv x nv each) of qdd = aba(q, qd, tau); false if M is singular (in double in host code without
+  // mimic joints M⁻¹ as minv's)
   template <class S>
   RBD_HD static bool forward_dynamics_gradient(const S* q, const S* qd, const S* tau, S gravity,
                                                S* dqdd_dq, S* dqdd_dqd) {
     Call<S, true> c;
     S qdd[nv];
+#if !defined(__CUDACC__)
+    if constexpr (std::is_same<S, double>::value && has_mimic == 0)
+      return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd,
+                                  dqdd_dq, dqdd_dqd, rbd::instance::Unrolled<Iiwa>::Factored{});
+#endif
     return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, dqdd_dq,
                                 dqdd_dqd);
   }

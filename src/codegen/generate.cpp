@@ -217,13 +217,22 @@ std::string generate_header(const Model& model, const std::string& name, const s
        "    Call<S, true>" << C <<
        "    rbd::rnea_derivatives(c.m, c.w, q, qd, qdd, static_cast<const S*>(nullptr), gravity, dtau_dq, dtau_dqd);\n"
        "  }\n\n"
-       "  // ∂qdd/∂q, ∂qdd/∂qd (nv x nv each) of qdd = aba(q, qd, tau); false if M is singular\n"
-       "  template <class S>\n"
+       "  // ∂qdd/∂q, ∂qdd/∂qd (nv x nv each) of qdd = aba(q, qd, tau); false if M is singular"
+    << (runtime_inertias ? "\n"
+                         : " (in double in host code without\n"
+                           "  // mimic joints M⁻¹ as minv's)\n")
+    << "  template <class S>\n"
        "  RBD_HD static bool forward_dynamics_gradient(" << P << "const S* q, const S* qd, const S* tau, S gravity,\n"
        "                                               S* dqdd_dq, S* dqdd_dqd) {\n"
        "    Call<S, true>" << C <<
        "    S qdd[nv];\n"
-       "    return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, dqdd_dq,\n"
+    << (runtime_inertias ? ""
+                         : "#if !defined(__CUDACC__)\n"
+                           "    if constexpr (std::is_same<S, double>::value && has_mimic == 0)\n"
+                           "      return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd,\n"
+                           "                                  dqdd_dq, dqdd_dqd, rbd::instance::Unrolled<" + name + ">::Factored{});\n"
+                           "#endif\n")
+    << "    return rbd::aba_derivatives(c.m, c.w, q, qd, tau, static_cast<const S*>(nullptr), gravity, qdd, dqdd_dq,\n"
        "                                dqdd_dqd);\n"
        "  }\n\n"
        "  // one step x⁺ = [q⁺; qd⁺] (nq + nv) of scheme `type` (rbd::IntegratorType: 0 euler, 1\n"

@@ -47,13 +47,15 @@ template <typename S> RBD_HD void apply_neg_minv(const ModelView<S>& m, Workspac
 // Dv = ∂ID/∂qd of a model without mimic joints: ∂tau_l/∂x_c vanishes unless l and c lie on one root
 // path (rnea_derivatives leaves those entries exact zeros), about half of a floating humanoid's
 // entries and three quarters of a fixed quadruped's. M⁻¹ is symmetric (w.dense, mirrored), so column
-// c of M⁻¹ D is Σ_l D_lc M⁻¹_l· over the rows l with D_lc ≠ 0, contiguous rows of M⁻¹. Column c of
-// both products runs at once, over the rows where either is nonzero (scaled_row_sums: each row of
-// M⁻¹ loaded once for both). Each entry is neg_matmul's sum in its order without zero terms: the
-// same number. Tq = (M⁻¹ Dq)ᵀ goes to w.dense2, Tv to w.so_dense's third block and the gathered
+// c of M⁻¹ D is Σ_l D_lc M⁻¹_l· over the rows l on c's root paths, contiguous rows of M⁻¹, listed
+// from the tree (a scan of D for its nonzeros took a sixth of the product on floating Atlas). Column
+// c of both products runs at once (scaled_row_sums: each row of M⁻¹ loaded once for both). Each entry
+// is neg_matmul's sum in its order without the exact zeros off the paths: the same number (to the
+// sign of a zero). Tq = (M⁻¹ Dq)ᵀ goes to w.dense2, Tv to w.so_dense's third block and the gathered
 // entries to its fourth (fdsva_so writes those only after aba_derivatives), then D <- -Tᵀ. Uses
-// w.so_i (nv ints: the rows of one column). aba_derivatives takes it when at most 2/3 of D can be
-// nonzero (a chain like the iiwa's is dense, and apply_neg_minv's blocked product is then faster),
+// w.so_i (nv + nb ints: the rows of one column, each body's count of ancestor DoFs). aba_derivatives
+// takes it when at most 2/3 of D can be nonzero (a chain like the iiwa's is dense, and
+// apply_neg_minv's blocked product is then faster),
 // in double and float only (a dual number's zero value may carry a derivative, a SIMD pack's zero is
 // per lane). Out of line on the host: inlined into aba_derivatives's flattened body, the same
 // products ran 2-3 % of ∇FD slower (floating HyQ and Atlas, a compiled instance).
@@ -77,13 +79,19 @@ RBD_NOINLINE RBD_FLATTEN RBD_HD void neg_minv_times_tree_sparse(const ModelView<
   S* a = w.so_dense + 3 * nn;  // column c's entries in the listed rows (nv each)
   S* b = a + nv;
   int* rows = w.so_i;
-  for (int c = 0; c < nv; ++c) {
-    int n = 0;
-    for (int l = 0; l < nv; ++l) {
-      const S x = Dq[l * nv + c], y = Dv[l * nv + c];
-      if (x != S(0) || y != S(0)) rows[n] = l, a[n] = x, b[n] = y, ++n;
+  int* above = w.so_i + nv;  // per body, the DoFs of its ancestors
+  for (int i = 0; i < m.nb; ++i) {
+    const BodyDesc<S>& bi = m.body[i];
+    // the rows of body i's columns, ascending: its ancestors' DoFs from the root, then its subtree's.
+    // Bodies are depth-first (has_mimic false), so rows[0, above_i) still lists the ancestors' as they
+    // wrote them (a body's at above_i, after its parent's): only the subtree's are written here
+    const int p = bi.parent, n0 = p < 0 ? 0 : above[p] + m.body[p].nv, n = n0 + bi.nv_subtree;
+    above[i] = n0;
+    for (int k = 0; k < bi.nv_subtree; ++k) rows[n0 + k] = bi.v_idx + k;
+    for (int c = bi.v_idx; c < bi.v_idx + bi.nv; ++c) {
+      for (int j = 0; j < n; ++j) a[j] = Dq[rows[j] * nv + c], b[j] = Dv[rows[j] * nv + c];
+      scaled_row_sums(Mi, a, b, nv, rows, n, Tq + c * nv, Tv + c * nv);
     }
-    scaled_row_sums(Mi, a, b, nv, rows, n, Tq + c * nv, Tv + c * nv);
   }
   for (int r = 0; r < nv; ++r)
     for (int c = 0; c < nv; ++c) Dq[r * nv + c] = -Tq[c * nv + r], Dv[r * nv + c] = -Tv[c * nv + r];
@@ -107,12 +115,14 @@ template <typename S> RBD_HD void copy_minv(const ModelView<S>& m, Workspace<S>&
 // derivative products need anyway, so qdd costs an RNEA and a product where ABA's three passes took
 // about twice that. It agrees with ABA's (the aba operation, the integrators' step) to rounding, not
 // bit for bit, as the team form's does (whose M⁻¹ is minv_column's, equal to the passes' to rounding).
-template <typename S> RBD_FLATTEN
+// factored: forward_dynamics's (a compiled instance's own factorisation, codegen/unrolled.hpp)
+template <typename S, typename Factored = FactoredMinv<S>> RBD_FLATTEN
 RBD_HD bool aba_derivatives(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
-                            const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd) {
+                            const S* fext, S gravity, S* qdd, S* dqdd_dq, S* dqdd_dqd,
+                            const Factored& factored = Factored{}) {
   // M⁻¹ first (forward_dynamics's, place): it leaves the placements and body inertias that the
   // derivative passes then reuse, in its frame (a free root's; the mimic path's CRBA leaves none)
-  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd, false, true)) return false;
+  if (!forward_dynamics(m, w, q, qd, tau, fext, gravity, qdd, false, true, factored)) return false;
   rnea_derivatives(m, w, q, qd, qdd, fext, gravity, dqdd_dq, dqdd_dqd, static_cast<S*>(nullptr), !m.has_mimic);
   if constexpr (std::is_same<S, double>::value || std::is_same<S, float>::value) {
     if (tree_sparse_product_pays(m)) {

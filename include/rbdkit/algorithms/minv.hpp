@@ -534,17 +534,27 @@ RBD_HD bool minv(const ModelView<S>& m, Workspace<S>& w, const S* q, bool dense,
   return minv_passes(m, w, q, dense, Minv, leave_world);
 }
 
+// forward_dynamics's M⁻¹ by the factorisation, dense, into Minv (its w.dense): minv_factored where that pays
+// (minv_factored_pays), on the joint placements the bias's RNEA left (crba's placed). false: it does not
+// pay, or the pivot check refused, and forward_dynamics runs the passes. A compiled instance passes its
+// own (codegen/unrolled.hpp's Unrolled::Factored: this CRBA body by body)
+template <typename S> struct FactoredMinv {
+  RBD_HD bool operator()(const ModelView<S>& m, Workspace<S>& w, const S* q, S* Minv) const {
+    return minv_factored_pays(m) && minv_factored(m, w, q, true, Minv, true);
+  }
+};
+
 // qdd = M⁻¹ (tau - c(q, qd, f_ext)): forward dynamics through the inverse.
 // writes w.dense (M⁻¹ in its first nv² entries; with mimic joints M's Cholesky
-// factor) and qdd (nv). M⁻¹ as minv takes it: by M's factorisation where that pays, on the joint
-// placements the bias's RNEA left (crba's placed), else by the direct passes. leave_world: as
-// minv's. place: also leave in w the reference frame's placements, subspace columns and body
-// inertias that the derivative passes reuse (rnea_derivatives's placed; w.X_parent, w.X_world,
-// w.S_world, w.Ic), as the passes do anyway; after the factorisation one more pass writes them
-// (reference_placements), with no joint placed again
-template <typename S> RBD_FLATTEN
+// factor) and qdd (nv). M⁻¹ as minv takes it: by M's factorisation where that pays (factored), else
+// by the direct passes. leave_world: as minv's. place: also leave in w the reference frame's
+// placements, subspace columns and body inertias that the derivative passes reuse
+// (rnea_derivatives's placed; w.X_parent, w.X_world, w.S_world, w.Ic), as the passes do anyway; after
+// the factorisation one more pass writes them (reference_placements), with no joint placed again
+template <typename S, typename Factored = FactoredMinv<S>> RBD_FLATTEN
 RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q, const S* qd, const S* tau,
-                             const S* fext, S gravity, S* qdd, bool leave_world = false, bool place = false) {
+                             const S* fext, S gravity, S* qdd, bool leave_world = false, bool place = false,
+                             const Factored& factored = Factored{}) {
   const int nv = m.nv;
   S* r = w.dense + nv * nv + nv;  // residual tau - c
   bias_residual(m, w, q, qd, tau, fext, gravity, r);
@@ -556,7 +566,7 @@ RBD_HD bool forward_dynamics(const ModelView<S>& m, Workspace<S>& w, const S* q,
     cholesky_solve(Mi, nv, qdd);
     return true;
   }
-  if (minv_factored_pays(m) && minv_factored(m, w, q, true, Mi, true)) {
+  if (factored(m, w, q, Mi)) {
     if (place) reference_placements(m, w, leave_world);
   } else if (!minv_passes(m, w, q, true, Mi, leave_world)) {
     return false;

@@ -9,7 +9,8 @@
 // each other, the robot's sizes and the table of (registered operation's
 // name, per-sample kernel). The loader refuses an instance whose ABI,
 // fingerprint or sizes differ from its own and its model's. Each kernel
-// (but crba's and minv's: the same passes, CRBA unrolled body by body, codegen/unrolled.hpp)
+// (but crba's, minv's and forward_dynamics_gradient's: the same passes, CRBA unrolled body by body,
+// codegen/unrolled.hpp)
 // is the registry's own Op::run on the robot's bodies as a constant table (the
 // generated struct's constexpr bodies<double>): the workspace and the arrays are the
 // caller's, as the serial loop (ops::run_serial) passes them; the model view
@@ -57,9 +58,17 @@ template <class R>
 bool unrolled_minv_kernel(const ModelView<double>&, Workspace<double>& w, const ops::OpArgs<double>& a) {
   return unrolled_minv<R>(w, a.in[0], a.choice[1] != 0, a.out[0]);
 }
+// forward_dynamics_gradient with that M⁻¹ (Unrolled::Factored) on a robot without mimic joints
+template <class R>
+RBD_FLATTEN bool unrolled_fd_gradient_kernel(const ModelView<double>& view, Workspace<double>& w,
+                                             const ops::OpArgs<double>& a) {
+  return ops::ForwardDynamicsGradient::run(RobotModel<R>::view(view), w, a, typename Unrolled<R>::Factored{});
+}
 template <class R, class Op> constexpr ops::Kernel<double> kernel() {
   if constexpr (std::is_same<Op, ops::Crba>::value && !R::has_mimic) return &unrolled_crba_kernel<R>;
   else if constexpr (std::is_same<Op, ops::Minv>::value && !R::has_mimic) return &unrolled_minv_kernel<R>;
+  else if constexpr (std::is_same<Op, ops::ForwardDynamicsGradient>::value && !R::has_mimic)
+    return &unrolled_fd_gradient_kernel<R>;
   else if constexpr (Op::spec.kernel == ops::kCalled) return &called_kernel<R, Op>;
   else return &flattened_kernel<R, Op>;
 }

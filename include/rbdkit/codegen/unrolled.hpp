@@ -280,10 +280,26 @@ template <class R> struct Unrolled {
   // where the factorisation's pivot check refuses, by the passes, whose verdict stands. w: the full
   // workspace. false if M is not PD
   __attribute__((flatten)) static bool minv(Workspace<double>& w, const double* q, bool dense, double* Minv) {
+    if (factor_inverse(w, q, dense, Minv)) return true;
+    return minv_fallback(w, q, dense, Minv);
+  }
+  // M⁻¹ by the factorisation alone: false where its pivot check refuses
+  RBD_HOST_INLINE static bool factor_inverse(Workspace<double>& w, const double* q, bool dense, double* Minv) {
     const ModelView<double> m = RobotModel<R>::view(ModelView<double>{});
     crba_pass<kMassLowerPattern>(q, w.dense2, w.Ic);
-    if (minv_of_factor_with(m, w, ConstantWalk{}, dense, Minv)) return true;
-    return minv_fallback(w, q, dense, Minv);
+    return minv_of_factor_with(m, w, ConstantWalk{}, dense, Minv);
+  }
+  // forward_dynamics's and aba_derivatives's M⁻¹ (minv.hpp's FactoredMinv) as minv's above, on every
+  // robot: false where the pivot check refuses, and they run the passes. Out of line: inlined into
+  // aba_derivatives's flattened body (or the generic FactoredMinv there), ∇FD took 15-18 % (floating
+  // HyQ) and 6-7 % (floating Atlas) longer (docs/performance.md, twentieth round)
+  struct Factored {
+    bool operator()(const ModelView<double>&, Workspace<double>& w, const double* q, double* Minv) const {
+      return factor_dense(w, q, Minv);
+    }
+  };
+  __attribute__((noinline, flatten)) static bool factor_dense(Workspace<double>& w, const double* q, double* Minv) {
+    return factor_inverse(w, q, true, Minv);
   }
   // the passes, out of minv's body: flattened into it they made fixed Atlas's M⁻¹ a quarter slower
   __attribute__((noinline, cold)) static bool minv_fallback(Workspace<double>& w, const double* q, bool dense,

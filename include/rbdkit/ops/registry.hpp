@@ -188,10 +188,14 @@ struct ForwardDynamicsGradient {
        optional_array("f_ext", shape(kNb, 6)), real("gravity", kGravity)},
       4, {{"dqdd_dq", shape(kNv, kNv)}, {"dqdd_dqd", shape(kNv, kNv)}, {"qdd", shape(kNv)}, {"Minv", shape(kNv, kNv)}},
       0b0011, 0, kFull, kScratchNv, kNotPositiveDefinite};
-  // M⁻¹ too when asked for it (computed on the way; Engine::forward_dynamics_gradient)
-  template <typename S> RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a) {
+  // M⁻¹ too when asked for it (computed on the way; Engine::forward_dynamics_gradient). factored:
+  // aba_derivatives's (a compiled instance's own, codegen/instance.hpp)
+  template <typename S, typename Factored = FactoredMinv<S>>
+  RBD_HD static bool run(const ModelView<S>& m, Workspace<S>& w, const OpArgs<S>& a,
+                         const Factored& factored = Factored{}) {
     S* qdd = a.out[2] ? a.out[2] : a.scratch;
-    if (!aba_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], qdd, a.out[0], a.out[1])) return false;
+    if (!aba_derivatives(m, w, a.in[0], a.in[1], a.in[2], a.in[3], a.real[4], qdd, a.out[0], a.out[1], factored))
+      return false;
     if (a.out[3]) {
       if (m.has_mimic) return minv(m, w, a.in[0], true, a.out[3]);  // w.dense holds a Cholesky factor there
       for (long i = 0; i < long(m.nv) * m.nv; ++i) a.out[3][i] = w.dense[i];
